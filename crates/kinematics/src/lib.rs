@@ -1,0 +1,102 @@
+//! Machine kinematics: Cartesian, polar and SCARA printers behind one small trait.
+//!
+//! Units: mm for lengths, radians for angles; motor positions are in the motor's own unit (mm or rad).
+//! Nothing here reads files or G-code: machines are built from the plain parameter structs in [`params`],
+//! which the `config` crate fills from `printer.cfg`.
+
+pub mod params;
+
+pub use params::*;
+
+/// A Cartesian toolhead position `[x, y, z]` in mm.
+pub type Vec3 = [f64; 3];
+
+/// The unit a motor position is measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotorUnit {
+    Mm,
+    Rad,
+}
+
+/// A motor (stepper) as the kinematics sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Motor {
+    /// Config section name, e.g. `stepper_bed`, `stepper_a`, `stepper_x`.
+    pub name: String,
+    pub unit: MotorUnit,
+    /// Motor travel per (micro)step, in `unit`.
+    pub step_distance: f64,
+}
+
+/// How a motor position depends on the toolhead position, when a closed form exists.
+///
+/// Step generation uses this to pick an exact solver; `General` means "use [`Kinematics::inverse_near`]".
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MotorMap {
+    /// position = `coeffs · p` (Cartesian axes).
+    Linear { coeffs: Vec3 },
+    /// position = distance of `(x, y)` from `centre` (polar arm).
+    Radius { centre: [f64; 2] },
+    /// position = `atan2(y − cy, x − cx)`, unwrapped to be continuous (polar bed).
+    Angle { centre: [f64; 2] },
+    /// No closed form (SCARA joints, polar with a sideways arm offset).
+    General,
+}
+
+/// Why a point or a segment cannot be reached.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReachError {
+    #[error("({x:.3}, {y:.3}) is out of reach: {distance:.3} mm from the shoulder, maximum {max:.3} mm")]
+    OutOfReach { x: f64, y: f64, distance: f64, max: f64 },
+    #[error("({x:.3}, {y:.3}) is inside the minimum radius: {distance:.3} mm from the axis, minimum {min:.3} mm")]
+    InsideMinimumRadius { x: f64, y: f64, distance: f64, min: f64 },
+    #[error("{motor} would have to be at {value:.4}, outside its limits [{min:.4}, {max:.4}]")]
+    JointLimit { motor: String, value: f64, min: f64, max: f64 },
+    #[error("({x:.3}, {y:.3}) cannot be reached on the configured elbow branch")]
+    BranchImpossible { x: f64, y: f64 },
+    #[error("({x:.3}, {y:.3}) is too close to a singular pose (|sin q2| = {sin_q2:.4}, margin {margin:.4})")]
+    Singular { x: f64, y: f64, sin_q2: f64, margin: f64 },
+    #[error("({x:.3}, {y:.3}) is at the rotation centre, where the bed angle is undefined")]
+    AtCentre { x: f64, y: f64 },
+    #[error("axis {axis} at {value:.3} is outside [{min:.3}, {max:.3}]")]
+    AxisLimit { axis: char, value: f64, min: f64, max: f64 },
+    #[error("position is not finite")]
+    NotFinite,
+}
+
+/// A problem found along a straight segment, with the fraction `t ∈ [0, 1]` of the segment where it occurs.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{reason} (at {:.1}% of the segment)", t * 100.0)]
+pub struct SegmentError {
+    pub t: f64,
+    pub reason: ReachError,
+}
+
+/// A machine's kinematics. Implementations: [`cartesian::Cartesian`], [`polar::Polar`], [`scara::Scara`].
+pub trait Kinematics: Send + Sync + std::fmt::Debug {
+    /// Short name as in `printer.cfg` (`cartesian`, `polar`, `scara`).
+    fn name(&self) -> &'static str;
+
+    /// The motors, in a fixed order used by every slice of motor positions below.
+    fn motors(&self) -> &[Motor];
+
+    /// How each motor's position depends on the toolhead position (same order as [`Self::motors`]).
+    fn motor_map(&self, motor: usize) -> MotorMap;
+
+    /// Motor positions for toolhead position `p`. Angles are in `(-π, π]` where a range applies.
+    fn inverse(&self, p: Vec3, motors: &mut [f64]) -> Result<(), ReachError>;
+
+    /// Motor positions for `p`, choosing for every angle the equivalent value nearest `previous`
+    /// (angles unwrapped, so a bed can turn without limit and moves stay continuous).
+    fn inverse_near(&self, p: Vec3, previous: &[f64], motors: &mut [f64]) -> Result<(), ReachError>;
+
+    /// Toolhead position for motor positions.
+    fn forward(&self, motors: &[f64]) -> Result<Vec3, ReachError>;
+
+    /// Jacobian `∂motor_i / ∂p_j` at `p` (one row per motor).
+    fn jacobian(&self, p: Vec3, rows: &mut [Vec3]) -> Result<(), ReachError>;
+
+    /// Checks a whole straight segment from `a` to `b`, not just its end points: minimum radius, reach,
+    /// singular poses and joint limits along the way.
+    fn check_segment(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError>;
+}

@@ -1,0 +1,162 @@
+//! Planned motion as constant-acceleration pieces: the hand-off between the planner and step generation.
+//!
+//! This mirrors Klipper's trapezoid queue (`trapq`): a planned move becomes up to three pieces (accelerate,
+//! cruise, decelerate); each piece moves along a fixed unit direction with constant acceleration.
+//! The planner (`motion`) produces pieces; step generation (`stepgen`) and the simulator consume them.
+
+/// A Cartesian toolhead position or direction, `[x, y, z]` in mm.
+pub type Vec3 = [f64; 3];
+
+/// One constant-acceleration piece of a straight move.
+///
+/// Distance along the direction after `t` seconds (0 ≤ t ≤ `duration`): `(start_v + half_accel·t)·t`;
+/// position: `start_pos + axes_r·distance`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Piece {
+    /// Absolute print time (s) at which the piece starts.
+    pub print_time: f64,
+    /// Duration (s), ≥ 0.
+    pub duration: f64,
+    /// Speed (mm/s) along `axes_r` at the start of the piece.
+    pub start_v: f64,
+    /// Half the acceleration (mm/s²) along `axes_r`; negative while decelerating.
+    pub half_accel: f64,
+    /// Position (mm) at the start of the piece.
+    pub start_pos: Vec3,
+    /// Unit direction of the move (or, for the extruder queue, `[1, 0, 0]`).
+    pub axes_r: Vec3,
+}
+
+impl Piece {
+    /// Distance travelled along `axes_r` after `t` seconds into the piece.
+    #[inline]
+    pub fn distance(&self, t: f64) -> f64 {
+        (self.start_v + self.half_accel * t) * t
+    }
+
+    /// Position after `t` seconds into the piece.
+    #[inline]
+    pub fn position(&self, t: f64) -> Vec3 {
+        let d = self.distance(t);
+        [
+            self.start_pos[0] + self.axes_r[0] * d,
+            self.start_pos[1] + self.axes_r[1] * d,
+            self.start_pos[2] + self.axes_r[2] * d,
+        ]
+    }
+
+    /// Speed along `axes_r` after `t` seconds into the piece.
+    #[inline]
+    pub fn velocity(&self, t: f64) -> f64 {
+        self.start_v + 2.0 * self.half_accel * t
+    }
+
+    /// Absolute print time at which the piece ends.
+    #[inline]
+    pub fn end_time(&self) -> f64 {
+        self.print_time + self.duration
+    }
+}
+
+/// One planned move as Klipper's `trapq_append` receives it: three phase durations and the speeds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrapezoidMove {
+    pub print_time: f64,
+    pub accel_t: f64,
+    pub cruise_t: f64,
+    pub decel_t: f64,
+    pub start_pos: Vec3,
+    pub axes_r: Vec3,
+    pub start_v: f64,
+    pub cruise_v: f64,
+    pub accel: f64,
+}
+
+impl TrapezoidMove {
+    /// Split into up to three pieces, skipping zero-length phases, the way Klipper's `trapq_append` does:
+    /// each later piece starts at the position reached at the end of the previous one.
+    pub fn pieces(&self) -> impl Iterator<Item = Piece> {
+        let mut out = [None; 3];
+        let mut print_time = self.print_time;
+        let mut start_pos = self.start_pos;
+        let phases = [
+            (self.accel_t, self.start_v, 0.5 * self.accel),
+            (self.cruise_t, self.cruise_v, 0.0),
+            (self.decel_t, self.cruise_v, -0.5 * self.accel),
+        ];
+        for (slot, (duration, start_v, half_accel)) in out.iter_mut().zip(phases) {
+            if duration == 0.0 {
+                continue;
+            }
+            let piece = Piece {
+                print_time,
+                duration,
+                start_v,
+                half_accel,
+                start_pos,
+                axes_r: self.axes_r,
+            };
+            print_time += duration;
+            start_pos = piece.position(duration);
+            *slot = Some(piece);
+        }
+        out.into_iter().flatten()
+    }
+
+    /// Total duration (s).
+    pub fn duration(&self) -> f64 {
+        self.accel_t + self.cruise_t + self.decel_t
+    }
+}
+
+/// Which queue a move belongs to: the toolhead (XYZ) or the extruder (E as the X coordinate).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Queue {
+    Toolhead,
+    Extruder,
+}
+
+/// Receiver of planned moves, in print-time order per queue.
+///
+/// The planner does not know who consumes its output (step generation, a CSV writer, the simulator).
+pub trait MoveSink {
+    /// A planned move was appended to `queue`.
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove);
+    /// Every move that starts before `print_time` has been appended: consumers may finish work up to it.
+    fn flush(&mut self, _print_time: f64) {}
+}
+
+impl<F: FnMut(Queue, &TrapezoidMove)> MoveSink for F {
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
+        self(queue, mv)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pieces_skip_empty_phases_and_chain_positions() {
+        let mv = TrapezoidMove {
+            print_time: 1.0,
+            accel_t: 0.5,
+            cruise_t: 0.0,
+            decel_t: 0.5,
+            start_pos: [0.0, 0.0, 0.0],
+            axes_r: [1.0, 0.0, 0.0],
+            start_v: 0.0,
+            cruise_v: 10.0,
+            accel: 20.0,
+        };
+        let pieces: Vec<Piece> = mv.pieces().collect();
+        assert_eq!(pieces.len(), 2);
+        // accelerating 0→10 mm/s over 0.5 s covers 2.5 mm
+        assert_eq!(pieces[1].start_pos, [2.5, 0.0, 0.0]);
+        assert_eq!(pieces[1].print_time, 1.5);
+        assert_eq!(pieces[1].start_v, 10.0);
+        assert_eq!(pieces[1].half_accel, -10.0);
+        assert_eq!(pieces[1].position(0.5), [5.0, 0.0, 0.0]);
+        assert_eq!(pieces[1].velocity(0.5), 0.0);
+    }
+}

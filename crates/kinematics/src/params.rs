@@ -60,8 +60,8 @@ pub enum ElbowBranch {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScaraParams {
     /// `stepper_a` (shoulder, rad/step), `stepper_b` (elbow motor, rad/step), `stepper_z`.
-    pub shoulder: StepperParams,
-    pub elbow: StepperParams,
+    pub shoulder_stepper: StepperParams,
+    pub elbow_stepper: StepperParams,
     pub z: StepperParams,
     /// Proximal arm (shoulder to elbow), mm.
     pub link1_length: f64,

@@ -1,1 +1,46 @@
-fn main() {}
+//! `jointspace`: the command-line front end. It only wires the library crates together: each subcommand
+//! turns its flags into a validated configuration, runs the pipeline, and renders errors as diagnostics.
+
+mod cmd;
+mod diag;
+mod input;
+mod output;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Debug, Parser)]
+#[command(name = "jointspace", version, about = "Motion host and toolkit for SCARA and polar 3D printers")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the whole pipeline on the bundled example machines and prints; report and pictures in --out.
+    Demo(cmd::demo::Args),
+    /// Summarise a G-code file: lines, commands, moves, extrusion, bounding box, layers.
+    Stats(cmd::stats::Args),
+    /// Plan a print and compute every motor step: print time, steps and peak step rates per motor.
+    Run(cmd::run::RunArgs),
+    /// Check a print against a machine without generating steps: reach, limits, slow moves.
+    Check(cmd::run::CheckArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(args) => cmd::demo::run(args),
+        Command::Stats(args) => cmd::stats::run(args),
+        Command::Run(args) => cmd::run::run(args),
+        Command::Check(args) => cmd::run::check(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(report) => {
+            eprintln!("{report:?}");
+            ExitCode::FAILURE
+        }
+    }
+}

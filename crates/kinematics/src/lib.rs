@@ -4,8 +4,14 @@
 //! Nothing here reads files or G-code: machines are built from the plain parameter structs in [`params`],
 //! which the `config` crate fills from `printer.cfg`.
 
+pub mod cartesian;
+mod common;
 pub mod params;
+pub mod polar;
+pub mod scara;
+pub mod workspace;
 
+pub use common::unwrap_near;
 pub use params::*;
 
 /// A Cartesian toolhead position `[x, y, z]` in mm.
@@ -46,20 +52,51 @@ pub enum MotorMap {
 /// Why a point or a segment cannot be reached.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReachError {
-    #[error("({x:.3}, {y:.3}) is out of reach: {distance:.3} mm from the shoulder, maximum {max:.3} mm")]
-    OutOfReach { x: f64, y: f64, distance: f64, max: f64 },
-    #[error("({x:.3}, {y:.3}) is inside the minimum radius: {distance:.3} mm from the axis, minimum {min:.3} mm")]
-    InsideMinimumRadius { x: f64, y: f64, distance: f64, min: f64 },
+    #[error(
+        "({x:.3}, {y:.3}) is out of reach: {distance:.3} mm from the shoulder, maximum {max:.3} mm"
+    )]
+    OutOfReach {
+        x: f64,
+        y: f64,
+        distance: f64,
+        max: f64,
+    },
+    #[error(
+        "({x:.3}, {y:.3}) is inside the minimum radius: {distance:.3} mm from the axis, minimum {min:.3} mm"
+    )]
+    InsideMinimumRadius {
+        x: f64,
+        y: f64,
+        distance: f64,
+        min: f64,
+    },
     #[error("{motor} would have to be at {value:.4}, outside its limits [{min:.4}, {max:.4}]")]
-    JointLimit { motor: String, value: f64, min: f64, max: f64 },
+    JointLimit {
+        motor: String,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
     #[error("({x:.3}, {y:.3}) cannot be reached on the configured elbow branch")]
     BranchImpossible { x: f64, y: f64 },
-    #[error("({x:.3}, {y:.3}) is too close to a singular pose (|sin q2| = {sin_q2:.4}, margin {margin:.4})")]
-    Singular { x: f64, y: f64, sin_q2: f64, margin: f64 },
+    #[error(
+        "({x:.3}, {y:.3}) is too close to a singular pose (|sin q2| = {sin_q2:.4}, margin {margin:.4})"
+    )]
+    Singular {
+        x: f64,
+        y: f64,
+        sin_q2: f64,
+        margin: f64,
+    },
     #[error("({x:.3}, {y:.3}) is at the rotation centre, where the bed angle is undefined")]
     AtCentre { x: f64, y: f64 },
     #[error("axis {axis} at {value:.3} is outside [{min:.3}, {max:.3}]")]
-    AxisLimit { axis: char, value: f64, min: f64, max: f64 },
+    AxisLimit {
+        axis: char,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
     #[error("position is not finite")]
     NotFinite,
 }
@@ -88,7 +125,8 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
 
     /// Motor positions for `p`, choosing for every angle the equivalent value nearest `previous`
     /// (angles unwrapped, so a bed can turn without limit and moves stay continuous).
-    fn inverse_near(&self, p: Vec3, previous: &[f64], motors: &mut [f64]) -> Result<(), ReachError>;
+    fn inverse_near(&self, p: Vec3, previous: &[f64], motors: &mut [f64])
+    -> Result<(), ReachError>;
 
     /// Toolhead position for motor positions.
     fn forward(&self, motors: &[f64]) -> Result<Vec3, ReachError>;
@@ -99,4 +137,36 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// Checks a whole straight segment from `a` to `b`, not just its end points: minimum radius, reach,
     /// singular poses and joint limits along the way.
     fn check_segment(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError>;
+
+    /// Checks one point against everything [`Self::check_segment`] checks (soft limits included).
+    ///
+    /// [`Self::inverse`] fails only where the geometry has no answer (out of reach, at the polar centre);
+    /// this also applies configured limits: axis/joint limits, base protection radius, singularity margin.
+    fn check_point(&self, p: Vec3) -> Result<(), ReachError> {
+        self.check_segment(p, p).map_err(|e| e.reason)
+    }
+}
+
+/// Why machine parameters were refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamError {
+    #[error("{name} must be a finite number, got {value}")]
+    NotFinite { name: String, value: f64 },
+    #[error("{name} must be positive, got {value}")]
+    NotPositive { name: String, value: f64 },
+    #[error("{name} must not be negative, got {value}")]
+    Negative { name: String, value: f64 },
+    #[error("{name}: minimum {min} is above maximum {max}")]
+    EmptyRange { name: String, min: f64, max: f64 },
+    #[error("{name}: {reason}")]
+    Invalid { name: String, reason: String },
+}
+
+/// Builds the machine described by `params` (validating them).
+pub fn build(params: &MachineParams) -> Result<Box<dyn Kinematics>, ParamError> {
+    Ok(match params {
+        MachineParams::Cartesian(p) => Box::new(cartesian::Cartesian::new(p.clone())?),
+        MachineParams::Polar(p) => Box::new(polar::Polar::new(p.clone())?),
+        MachineParams::Scara(p) => Box::new(scara::Scara::new(p.clone())?),
+    })
 }

@@ -72,6 +72,10 @@ pub struct ScaraParams {
     pub offset_y: f64,
     /// Elbow coupling `c`: `motor_b = q2 + c·q1` (`ecr` gives `c = 1/ecr`; Morgan `c = 1`; RRF `C` is `−c`).
     pub elbow_coupling: f64,
+    /// The FEKT-SCARA `ecr` when the config gave it. When set, `motor_b = q2 + q1/ecr` is computed by
+    /// division exactly as the fork does (bit-identical motor positions), and `elbow_coupling` must equal
+    /// `1/ecr` (checked to 1e-12). `None`: `elbow_coupling` is used as a multiplier.
+    pub ecr: Option<f64>,
     pub elbow: ElbowBranch,
     pub frame: ScaraFrame,
     /// Joint zero offsets (rad): motor angle reading when the joint is at its kinematic zero.

@@ -1,1 +1,29 @@
-//! stepgen
+//! stepgen: exact step times for every motor of a machine, from planned trapezoid pieces.
+//!
+//! Reproduces Klipper's step semantics (itersolve + stepcompress with step compression off): a step when the
+//! ideal motor position crosses the half-step point around the commanded position, times rounded to MCU
+//! clock ticks, and the step+dir+step filter. Closed forms are used where they exist (Cartesian axes and the
+//! extruder, polar arm and bed); other motors use a bracketed solver over [`kinematics::Kinematics`].
+//!
+//! Entry points: [`StepGenerator`] (all motors, parallel, streaming in chunks) or [`MotorStepper`] (one
+//! motor); steps go to a [`StepSink`] per motor ([`StepFileWriter`], [`StepStats`], `Vec<Step>`, ...).
+
+mod error;
+mod filter;
+mod general;
+mod generator;
+mod motor;
+mod moves_csv;
+mod sink;
+mod stats;
+mod timing;
+mod writer;
+
+pub use error::{MovesCsvError, StepError, StepFileError};
+pub use filter::StepFilter;
+pub use generator::{ExtruderSpec, StepGenerator};
+pub use motor::{MotorModel, MotorSpec, MotorStepper, REVERSAL_MARGIN, StepGenConfig};
+pub use moves_csv::{parse_row, read_moves_csv};
+pub use sink::{CountSink, Step, StepSink, Tee};
+pub use stats::{MotorStats, StepStats};
+pub use writer::{StepFileWriter, read_step_file};

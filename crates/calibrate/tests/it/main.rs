@@ -1,0 +1,6 @@
+//! Integration tests of the calibrate crate: circle fits against closed forms, the centre scan on the
+//! simulated Hall-sensor printer, and SCARA identification on simulated measurements.
+
+mod centre_scan;
+mod circle_fits;
+mod scara_ident;

@@ -1,0 +1,10 @@
+//! One module per subcommand.
+
+pub mod demo;
+pub mod run;
+pub mod stats;
+
+/// Convert an `anyhow` error into a report (plain message, with its causes).
+pub fn plain(e: anyhow::Error) -> miette::Report {
+    miette::miette!("{e:#}")
+}

@@ -1,0 +1,28 @@
+//! Opening inputs: a G-code file (or `-` for standard input) behind a buffered, progress-reporting reader.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+
+/// A buffered reader over a file or stdin, with a progress bar on stderr for large files
+/// (hidden automatically when stderr is not a terminal).
+pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, ProgressBar)> {
+    if path == Path::new("-") {
+        let bar = ProgressBar::hidden();
+        return Ok((Box::new(BufReader::with_capacity(1 << 16, std::io::stdin())), "<stdin>".into(), bar));
+    }
+    let file = std::fs::File::open(path)
+        .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let bar = if size > 16 << 20 {
+        let bar = ProgressBar::new(size);
+        if let Ok(style) = ProgressStyle::with_template("{bar:40} {bytes}/{total_bytes} {bytes_per_sec} eta {eta}") {
+            bar.set_style(style);
+        }
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let reader: Box<dyn Read> = Box::new(bar.wrap_read(file));
+    Ok((Box::new(BufReader::with_capacity(1 << 16, reader)), path.display().to_string(), bar))
+}

@@ -1,0 +1,28 @@
+//! Writing output files safely: into a temporary file beside the target, renamed into place only when complete,
+//! so a failed or interrupted run never leaves a half-written file.
+
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+/// Write `path` through `fill`; the file appears only if `fill` succeeds.
+pub fn write_atomically<F>(path: &Path, fill: F) -> anyhow::Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> anyhow::Result<()>,
+{
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    let temp = tempfile::Builder::new()
+        .prefix(".jointspace-")
+        .tempfile_in(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create a temporary file in {}: {e}", dir.display()))?;
+    {
+        let mut writer = BufWriter::new(temp.as_file());
+        fill(&mut writer)?;
+        writer.flush()?;
+    }
+    temp.persist(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    Ok(())
+}

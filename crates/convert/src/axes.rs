@@ -1,0 +1,173 @@
+//! The map between Cartesian toolhead positions and the two planar output axes the written G-code drives
+//! (motor angles/radius, or corrected Cartesian XY for a firmware with the ideal model), and back.
+//!
+//! Internal units: mm and rad. Z is not an output of this map: it is linear on every machine here.
+
+use std::sync::Arc;
+
+use kinematics::{Kinematics, MotorMap, MotorUnit, ReachError, SegmentError};
+
+use crate::error::ConvertError;
+use crate::options::Target;
+
+/// Most motors a machine may have here (planar pair + Z + spare).
+const MAX_MOTORS: usize = 6;
+
+/// Cartesian ⇄ output axes.
+#[derive(Debug, Clone)]
+pub enum AxisMap {
+    /// Output = two motors of `kin`.
+    Motors { kin: Arc<dyn Kinematics>, planar: [usize; 2], z: Option<usize>, count: usize },
+    /// Output = Cartesian XY for a firmware that believes in `ideal` while the machine is `real`:
+    /// `xy' = ideal.forward(real.inverse(p))`.
+    Corrected { real: Arc<dyn Kinematics>, ideal: Arc<dyn Kinematics>, z: Option<usize>, count: usize },
+}
+
+impl AxisMap {
+    pub fn motors(kin: Arc<dyn Kinematics>, target: Target) -> Result<AxisMap, ConvertError> {
+        let count = motor_count(kin.as_ref())?;
+        let z = z_motor(kin.as_ref());
+        let planar = match target {
+            Target::Cylindrical => cylindrical_motors(kin.as_ref())?,
+            Target::Joints => {
+                let mut others = (0..count).filter(|&i| Some(i) != z);
+                match (others.next(), others.next()) {
+                    (Some(a), Some(b)) => [a, b],
+                    _ => return Err(ConvertError::Setup("the machine has fewer than two planar motors".into())),
+                }
+            }
+        };
+        Ok(AxisMap::Motors { kin, planar, z, count })
+    }
+
+    pub fn corrected(real: Arc<dyn Kinematics>, ideal: Arc<dyn Kinematics>) -> Result<AxisMap, ConvertError> {
+        let count = motor_count(real.as_ref())?;
+        if motor_count(ideal.as_ref())? != count {
+            return Err(ConvertError::Setup("real and ideal machines have different motors".into()));
+        }
+        let z = z_motor(real.as_ref());
+        Ok(AxisMap::Corrected { real, ideal, z, count })
+    }
+
+    /// Units of the two output axes.
+    pub fn units(&self) -> [MotorUnit; 2] {
+        match self {
+            AxisMap::Motors { kin, planar, .. } => {
+                let m = kin.motors();
+                [m[planar[0]].unit, m[planar[1]].unit]
+            }
+            AxisMap::Corrected { .. } => [MotorUnit::Mm, MotorUnit::Mm],
+        }
+    }
+
+    /// Output axes for toolhead position `p`, angles chosen nearest `near` (unwrapped).
+    pub fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
+        match self {
+            AxisMap::Motors { kin, planar, count, .. } => {
+                let mut prev = [0.0; MAX_MOTORS];
+                prev[planar[0]] = near[0];
+                prev[planar[1]] = near[1];
+                let mut out = [0.0; MAX_MOTORS];
+                kin.inverse_near(p, &prev[..*count], &mut out[..*count])?;
+                Ok([out[planar[0]], out[planar[1]]])
+            }
+            AxisMap::Corrected { real, ideal, count, .. } => {
+                let mut motors = [0.0; MAX_MOTORS];
+                real.inverse(p, &mut motors[..*count])?;
+                let xy = ideal.forward(&motors[..*count])?;
+                // The ideal firmware must choose the same motor positions for xy' (e.g. no negative radius).
+                let mut back = [0.0; MAX_MOTORS];
+                ideal.inverse_near(xy, &motors[..*count], &mut back[..*count])?;
+                let same = motors[..*count].iter().zip(&back[..*count]).all(|(a, b)| (a - b).abs() <= 1e-9 * (1.0 + a.abs()));
+                if !same {
+                    return Err(ReachError::BranchImpossible { x: p[0], y: p[1] });
+                }
+                Ok([xy[0], xy[1]])
+            }
+        }
+    }
+
+    /// Toolhead XY reached when the output axes are at `a` and Z at `z`.
+    pub fn from_axes(&self, a: [f64; 2], z: f64) -> Result<[f64; 2], ReachError> {
+        match self {
+            AxisMap::Motors { kin, planar, z: z_index, count } => {
+                let mut m = [0.0; MAX_MOTORS];
+                m[planar[0]] = a[0];
+                m[planar[1]] = a[1];
+                if let Some(zi) = z_index {
+                    m[*zi] = z;
+                }
+                let p = kin.forward(&m[..*count])?;
+                Ok([p[0], p[1]])
+            }
+            AxisMap::Corrected { real, ideal, count, .. } => {
+                let mut m = [0.0; MAX_MOTORS];
+                ideal.inverse([a[0], a[1], z], &mut m[..*count])?;
+                let p = real.forward(&m[..*count])?;
+                Ok([p[0], p[1]])
+            }
+        }
+    }
+
+    /// Whole-segment check on the machine that moves (reach, minimum radius, singular poses, centre).
+    pub fn check_line(&self, a: [f64; 3], b: [f64; 3]) -> Result<(), SegmentError> {
+        match self {
+            AxisMap::Motors { kin, .. } => kin.check_segment(a, b),
+            AxisMap::Corrected { real, .. } => real.check_segment(a, b),
+        }
+    }
+
+    /// The polar rotation centre, where a motor declares itself an angle about a point.
+    pub fn centre(&self) -> Option<[f64; 2]> {
+        let kin = self.machine();
+        (0..kin.motors().len()).find_map(|i| match kin.motor_map(i) {
+            MotorMap::Angle { centre } => Some(centre),
+            _ => None,
+        })
+    }
+
+    /// The machine that moves.
+    pub fn machine(&self) -> &dyn Kinematics {
+        match self {
+            AxisMap::Motors { kin, .. } => kin.as_ref(),
+            AxisMap::Corrected { real, .. } => real.as_ref(),
+        }
+    }
+}
+
+fn motor_count(kin: &dyn Kinematics) -> Result<usize, ConvertError> {
+    let n = kin.motors().len();
+    if (2..=MAX_MOTORS).contains(&n) {
+        Ok(n)
+    } else {
+        Err(ConvertError::Setup(format!("unsupported number of motors: {n}")))
+    }
+}
+
+/// The motor that is the Z axis itself (position = z), if any.
+fn z_motor(kin: &dyn Kinematics) -> Option<usize> {
+    (0..kin.motors().len()).find(|&i| matches!(kin.motor_map(i), MotorMap::Linear { coeffs } if coeffs == [0.0, 0.0, 1.0]))
+        .or_else(|| kin.motors().iter().position(|m| m.name.ends_with("_z")))
+}
+
+/// `[radius motor, angle motor]` of a polar machine: `stepper_arm` and `stepper_bed` by name, else by map.
+fn cylindrical_motors(kin: &dyn Kinematics) -> Result<[usize; 2], ConvertError> {
+    let motors = kin.motors();
+    let by_name = |part: &str| motors.iter().position(|m| m.name.contains(part));
+    let by_map = |want_angle: bool| {
+        (0..motors.len()).find(|&i| match kin.motor_map(i) {
+            MotorMap::Angle { .. } => want_angle,
+            MotorMap::Radius { .. } => !want_angle,
+            _ => false,
+        })
+    };
+    let radius = by_name("arm").or_else(|| by_map(false));
+    let angle = by_name("bed").or_else(|| by_map(true));
+    match (radius, angle) {
+        (Some(r), Some(a)) if r != a && motors[r].unit == MotorUnit::Mm && motors[a].unit == MotorUnit::Rad => Ok([r, a]),
+        _ => Err(ConvertError::Setup(format!(
+            "cylindrical output needs a polar machine (arm and bed motors); `{}` has none",
+            kin.name()
+        ))),
+    }
+}

@@ -1,0 +1,591 @@
+//! The streaming converter: interpreted commands (with their raw line text) in, output G-code lines out.
+//!
+//! Memory is bounded by the longest single move's segment list; nothing else grows with the input.
+//!
+//! Output conventions:
+//! - Axes are absolute (`G90` in the header); planar axes are the two output axes (see [`Target`]), Z is
+//!   Cartesian Z, E follows [`Extrusion`] (`M83` or `M82` in the header). Input `G90/G91/M82/M83` lines are
+//!   kept as comments (the conversion already applied them); `M220/M221` likewise (already in the feed / E).
+//! - Every converted motion line is `G1` (so every line's `F` has the same meaning); the one exception is the
+//!   first move after the start or a `G28`, whose start point is unknown: it is written as a single `G0`
+//!   without `F` (a positioning move; its path is not defined by the input either).
+//! - `G92 E` is written through; `G92 X/Y/Z` only renames coordinates (the interpreter has applied it) and is
+//!   kept as a comment; `SET_KINEMATIC_POSITION` is refused.
+//! - A move through the exact polar centre is cut there and the bed turns by the shortest rotation in a
+//!   separate rotate-in-place line with E unchanged, at [`ConvertOptions::flip_speed`].
+
+use std::io::Write;
+
+use gcode::command::{Arc as ArcMove, Command, Move, Span, Spanned};
+use kinematics::{MotorUnit, ReachError, SegmentError};
+
+use crate::axes::AxisMap;
+use crate::error::ConvertError;
+use crate::format::{feed_decimals, push_units, push_word, scale, to_units};
+use crate::options::{AngleUnit, ConvertOptions, Extrusion, FeedMode, Segmentation};
+use crate::path::Path;
+use crate::segment::{Breakpoint, CutError, cut_adaptive, cut_fixed};
+
+/// Distance (mm) kept from the exact polar centre, where the bed angle is undefined.
+const CENTRE_GAP: f64 = 1e-7;
+/// Share of the tolerance the probe check may use (the rest covers probe sampling and rounding).
+const PROBE_MARGIN: f64 = 0.9;
+
+/// Counts of what was written.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ConvertStats {
+    /// Motion lines written for converted moves (not counting flips and positioning moves).
+    pub segments: u64,
+    /// Input moves and arcs converted.
+    pub moves: u64,
+    /// Rotate-in-place lines at the polar centre.
+    pub flips: u64,
+    /// Moves with an unknown start written as a single `G0`.
+    pub positioning_moves: u64,
+}
+
+/// What the converter has written so far, in output units.
+#[derive(Debug, Clone, Copy, Default)]
+struct Written {
+    axes: [i64; 2],
+    z: i64,
+    /// Machine E at the last written point, in extrusion units.
+    e: i64,
+    /// Absolute mode: machine E units minus written E units (changed by `G92 E`).
+    e_offset: i64,
+    z_known: bool,
+}
+
+/// Streaming G-code converter. Feed it every input line with [`Converter::line`], then call
+/// [`Converter::finish`].
+#[derive(Debug)]
+pub struct Converter<W: Write> {
+    map: AxisMap,
+    options: ConvertOptions,
+    out: W,
+    buf: Vec<u8>,
+    cuts: Vec<Breakpoint>,
+    /// Cartesian machine position `[x, y, z, e]` after the last command; `None` = unknown (start, G28).
+    position: Option<[f64; 4]>,
+    /// Output axes at the last written point (mm / rad, unwrapped).
+    axes: [f64; 2],
+    /// The last written point is at the polar centre (the next move starts with a flip).
+    at_centre: bool,
+    written: Written,
+    /// Scale from internal axis units to written units, per planar axis.
+    axis_scale: [f64; 2],
+    axis_decimals: [u8; 2],
+    rotary: [bool; 2],
+    target_deviation: f64,
+    started: bool,
+    stats: ConvertStats,
+}
+
+impl<W: Write> Converter<W> {
+    /// A converter writing motor-space G-code for `map`'s machine to `out`.
+    pub fn new(map: AxisMap, options: ConvertOptions, out: W) -> Result<Self, ConvertError> {
+        validate(&options)?;
+        let units = map.units();
+        let rotary = units.map(|u| u == MotorUnit::Rad);
+        let angle_scale = match options.angle_unit {
+            AngleUnit::Degrees => 180.0 / std::f64::consts::PI,
+            AngleUnit::Radians => 1.0,
+        };
+        let d = options.decimals;
+        let axis_scale = rotary.map(|r| if r { angle_scale } else { 1.0 });
+        let axis_decimals = rotary.map(|r| if r { d.angle } else { d.linear });
+        let target_deviation = match options.segmentation {
+            Segmentation::Adaptive { tolerance } => tolerance * PROBE_MARGIN - rounding_budget(rotary, axis_scale, axis_decimals),
+            Segmentation::Fixed { .. } => f64::INFINITY,
+        };
+        if target_deviation <= 0.0 {
+            return Err(ConvertError::Options("tolerance is below the output's rounding: raise decimals".into()));
+        }
+        Ok(Converter {
+            map,
+            options,
+            out,
+            buf: Vec::with_capacity(256),
+            cuts: Vec::new(),
+            position: None,
+            axes: [0.0; 2],
+            at_centre: false,
+            written: Written::default(),
+            axis_scale,
+            axis_decimals,
+            rotary,
+            target_deviation,
+            started: false,
+            stats: ConvertStats::default(),
+        })
+    }
+
+    pub fn stats(&self) -> ConvertStats {
+        self.stats
+    }
+
+    /// Converts one input line: `raw` is its text (without the newline), `commands` what the interpreter
+    /// made of it (empty for blank and comment-only lines).
+    pub fn line(&mut self, raw: &str, commands: &[Spanned<Command>]) -> Result<(), ConvertError> {
+        self.start()?;
+        if commands.iter().all(|c| passes_through(&c.value)) {
+            return self.write_raw(raw);
+        }
+        if let Some(comment) = raw.find(';').map(|i| &raw[i..]) {
+            self.write_raw(comment)?;
+        }
+        for command in commands {
+            self.command(raw, command)?;
+        }
+        Ok(())
+    }
+
+    /// Ends the output (`G94` after inverse-time output), flushes, and returns the writer and the counts.
+    pub fn finish(mut self) -> Result<(W, ConvertStats), ConvertError> {
+        self.start()?;
+        if self.options.feed == FeedMode::InverseTime {
+            self.write_raw("G94")?;
+        }
+        self.out.flush()?;
+        Ok((self.out, self.stats))
+    }
+
+    fn start(&mut self) -> Result<(), ConvertError> {
+        if self.started {
+            return Ok(());
+        }
+        self.started = true;
+        let e_mode = match self.options.extrusion {
+            Extrusion::Relative => "M83",
+            Extrusion::Absolute => "M82",
+        };
+        writeln!(self.out, "; converted by jointspace: motor-space output, absolute axes")?;
+        writeln!(self.out, "G90\n{e_mode}")?;
+        if self.options.feed == FeedMode::InverseTime {
+            writeln!(self.out, "G93")?;
+        }
+        Ok(())
+    }
+
+    fn command(&mut self, raw: &str, command: &Spanned<Command>) -> Result<(), ConvertError> {
+        let span = command.span;
+        match &command.value {
+            Command::Move(m) => self.straight(span, m),
+            Command::Arc(a) => self.arc(span, a),
+            Command::Home { axes } => self.home(raw, *axes),
+            Command::SetPosition { position } => self.set_position(raw, position),
+            Command::SetKinematicPosition { .. } => Err(ConvertError::Unsupported {
+                span,
+                what: "SET_KINEMATIC_POSITION".into(),
+                why: "it declares a Cartesian pose the output firmware cannot interpret".into(),
+            }),
+            Command::SpeedFactor(_) | Command::ExtrudeFactor(_) => {
+                self.write_note(raw, "already applied to the converted moves")
+            }
+            Command::Other { name } if is_mode_command(name) => {
+                self.write_note(raw, "already applied: the output uses absolute axes")
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn home(&mut self, raw: &str, axes: [bool; 3]) -> Result<(), ConvertError> {
+        self.position = None;
+        self.at_centre = false;
+        self.written.z_known = false;
+        let letters = self.options.letters();
+        if letters == ['X', 'Y'] || !(axes[0] || axes[1]) {
+            return self.write_raw(raw);
+        }
+        let mut line = format!("G28 {} {}", letters[0], letters[1]);
+        if axes[2] {
+            line.push_str(" Z");
+        }
+        self.write_raw(&line)
+    }
+
+    fn set_position(&mut self, raw: &str, position: &[Option<f64>; 4]) -> Result<(), ConvertError> {
+        if position[..3].iter().any(Option::is_some) {
+            self.write_note(raw, "coordinates renamed; the output is in machine coordinates")?;
+        }
+        let Some(e) = position[3] else { return Ok(()) };
+        let decimals = self.options.decimals.extrusion;
+        let new_units = to_units(e, decimals);
+        if let Some(p) = self.position {
+            self.written.e = to_units(p[3], decimals);
+        }
+        self.written.e_offset = self.written.e - new_units;
+        self.buf.clear();
+        self.buf.extend_from_slice(b"G92");
+        push_word(&mut self.buf, 'E', new_units, decimals);
+        self.buf.push(b'\n');
+        self.out.write_all(&self.buf)?;
+        Ok(())
+    }
+
+    fn straight(&mut self, span: Span, m: &Move) -> Result<(), ConvertError> {
+        let target = self.placed(m.target);
+        let Some(start) = self.position else {
+            return self.positioning_move(span, target);
+        };
+        self.stats.moves += 1;
+        let path = Path::Line { from: xyz(start), to: xyz(target) };
+        self.position = Some(target);
+        if path.xy_length() == 0.0 {
+            check_feed(span, m.feed)?;
+            return self.write_in_place(start, target, m.feed);
+        }
+        let crossing = self.line_crossing(span, &path)?;
+        self.convert_path(span, &path, crossing, (start[3], target[3]), m.feed)
+    }
+
+    fn arc(&mut self, span: Span, a: &ArcMove) -> Result<(), ConvertError> {
+        let start = match self.position {
+            Some(p) => p,
+            None => self.placed(a.start),
+        };
+        let target = self.placed(a.target);
+        let centre = self.options.place(a.centre);
+        let path = Path::arc(xyz(start), xyz(target), centre, a.clockwise, a.turns);
+        if self.position.is_none() {
+            return self.positioning_move(span, target);
+        }
+        self.stats.moves += 1;
+        self.position = Some(target);
+        if path.xy_length() < 1e-9 {
+            check_feed(span, a.feed)?;
+            return self.write_in_place(start, target, a.feed);
+        }
+        if self.arc_meets_centre(&path) {
+            return Err(ConvertError::Unsupported {
+                span,
+                what: "an arc through the polar centre".into(),
+                why: "the bed angle is undefined there; write it as straight moves".into(),
+            });
+        }
+        self.convert_path(span, &path, None, (start[3], target[3]), a.feed)
+    }
+
+    /// Input position moved by the placement offset.
+    fn placed(&self, p: [f64; 4]) -> [f64; 4] {
+        let [x, y] = self.options.place([p[0], p[1]]);
+        [x, y, p[2], p[3]]
+    }
+
+    /// Where (as a path fraction) a straight move passes exactly through the polar centre.
+    fn line_crossing(&self, span: Span, path: &Path) -> Result<Option<f64>, ConvertError> {
+        let Path::Line { from, to } = *path else { return Ok(None) };
+        match self.map.check_line(from, to) {
+            Ok(()) => {}
+            Err(SegmentError { t, reason: ReachError::AtCentre { .. } }) => return Ok(Some(t.clamp(0.0, 1.0))),
+            Err(SegmentError { reason, .. }) => return Err(ConvertError::Unreachable { span, reason }),
+        }
+        // Kinematics that accept the centre on a segment: find it from the map's declared centre.
+        let Some(c) = self.map.centre() else { return Ok(None) };
+        let d = [to[0] - from[0], to[1] - from[1]];
+        let len2 = d[0] * d[0] + d[1] * d[1];
+        let t = (((c[0] - from[0]) * d[0] + (c[1] - from[1]) * d[1]) / len2).clamp(0.0, 1.0);
+        let miss = (from[0] + d[0] * t - c[0]).hypot(from[1] + d[1] * t - c[1]);
+        Ok((miss <= CENTRE_GAP * 1e-3).then_some(t))
+    }
+
+    fn arc_meets_centre(&self, path: &Path) -> bool {
+        match self.map.centre() {
+            Some(c) => path.distance_xy(c, 0.0, 1.0) <= CENTRE_GAP,
+            None => false,
+        }
+    }
+
+    /// Converts a path with XY motion; `crossing` = fraction where it meets the polar centre.
+    fn convert_path(
+        &mut self,
+        span: Span,
+        path: &Path,
+        crossing: Option<f64>,
+        e: (f64, f64),
+        feed: f64,
+    ) -> Result<(), ConvertError> {
+        check_feed(span, feed)?;
+        let gap = (CENTRE_GAP / path.xy_length()).min(0.5);
+        let mut s = 0.0;
+        if self.at_centre || crossing.is_some_and(|t| t <= gap) {
+            s = gap;
+            self.flip(span, path, s)?;
+        }
+        if let Some(t) = crossing.filter(|&t| t > gap) {
+            let ends_at_centre = t + gap >= 1.0;
+            let s_in = (t - gap).max(s);
+            self.cut_and_write(span, path, (s, s_in), e, feed, ends_at_centre)?;
+            if ends_at_centre {
+                self.at_centre = true;
+                return Ok(());
+            }
+            s = t + gap;
+            self.flip(span, path, s)?;
+        }
+        self.cut_and_write(span, path, (s, 1.0), e, feed, true)?;
+        self.at_centre = false;
+        Ok(())
+    }
+
+    /// Rotate in place at the centre to the axes of `path.point(s)`, the nearest equivalent angle.
+    fn flip(&mut self, span: Span, path: &Path, s: f64) -> Result<(), ConvertError> {
+        let to = self.map.to_axes(path.point(s), self.axes).map_err(|reason| ConvertError::Unreachable { span, reason })?;
+        let turn = (0..2).filter(|&i| self.rotary[i]).map(|i| (to[i] - self.axes[i]).abs()).fold(0.0, f64::max);
+        self.axes = to;
+        self.at_centre = false;
+        let time = turn / self.options.flip_speed;
+        let z = self.position.map_or(0.0, |p| p[2]);
+        let e_units = self.written.e;
+        if self.write_motion(to, z, e_units, time, self.options.flip_speed)? {
+            self.stats.flips += 1;
+        }
+        Ok(())
+    }
+
+    /// Cuts `[s0, s1]` of `path` and writes its segments with their share of E and Cartesian time; the last
+    /// segment of the move (`last`) writes the move's end E exactly, absorbing rounding.
+    fn cut_and_write(
+        &mut self,
+        span: Span,
+        path: &Path,
+        (s0, s1): (f64, f64),
+        e: (f64, f64),
+        feed: f64,
+        last: bool,
+    ) -> Result<(), ConvertError> {
+        if s1 <= s0 {
+            return Ok(());
+        }
+        let length = path.length();
+        let mut cuts = std::mem::take(&mut self.cuts);
+        cuts.clear();
+        let from = (s0, self.axes);
+        let result = match self.options.segmentation {
+            Segmentation::Adaptive { .. } => cut_adaptive(path, &self.map, from, s1, self.target_deviation, &mut cuts),
+            Segmentation::Fixed { segments_per_second, min_length } => {
+                let piece = length * (s1 - s0);
+                let by_time = (piece / feed * segments_per_second).round();
+                let by_length = (piece / min_length).floor().max(1.0);
+                cut_fixed(path, &self.map, from, s1, by_time.clamp(1.0, by_length) as usize, &mut cuts)
+            }
+        };
+        if let Err(e) = result {
+            self.cuts = cuts;
+            return Err(self.cut_error(span, path, e));
+        }
+        let decimals = self.options.decimals.extrusion;
+        let mut s_prev = s0;
+        for cut in &cuts {
+            let p = path.point(cut.s);
+            if matches!(path, Path::Arc { .. }) {
+                self.map.check_line(path.point(s_prev), p).map_err(|err| ConvertError::Unreachable { span, reason: err.reason })?;
+            }
+            let e_units = if last && cut.s >= s1 { to_units(e.1, decimals) } else { to_units(e.0 + (e.1 - e.0) * cut.s, decimals) };
+            let time = length * (cut.s - s_prev) / feed;
+            self.axes = cut.axes;
+            if self.write_motion(cut.axes, p[2], e_units, time, feed)? {
+                self.stats.segments += 1;
+            }
+            s_prev = cut.s;
+        }
+        self.cuts = cuts;
+        Ok(())
+    }
+
+    fn cut_error(&self, span: Span, path: &Path, e: CutError) -> ConvertError {
+        match e {
+            CutError::Reach(reason) => ConvertError::Unreachable { span, reason },
+            CutError::NoConvergence { s } => {
+                let p = path.point(s);
+                ConvertError::NoConvergence { span, x: p[0], y: p[1], tolerance: self.target_deviation / PROBE_MARGIN }
+            }
+        }
+    }
+
+    /// A move without XY motion (Z only, E only): one line, planar axes unchanged.
+    fn write_in_place(&mut self, start: [f64; 4], target: [f64; 4], feed: f64) -> Result<(), ConvertError> {
+        let dz = target[2] - start[2];
+        let de = target[3] - start[3];
+        let distance = if dz != 0.0 { dz.abs() } else { de.abs() };
+        if distance == 0.0 {
+            return Ok(());
+        }
+        let e_units = to_units(target[3], self.options.decimals.extrusion);
+        if self.write_motion(self.axes, target[2], e_units, distance / feed, feed)? {
+            self.stats.segments += 1;
+        }
+        Ok(())
+    }
+
+    /// The first move after the start or a homing: a single `G0` to the target, no `F`.
+    fn positioning_move(&mut self, span: Span, target: [f64; 4]) -> Result<(), ConvertError> {
+        let p = xyz(target);
+        let axes = match self.map.to_axes(p, self.axes) {
+            Ok(a) => a,
+            Err(ReachError::AtCentre { .. }) => {
+                self.at_centre = true;
+                self.map.to_axes([p[0] + CENTRE_GAP, p[1], p[2]], self.axes)
+                    .map_err(|reason| ConvertError::Unreachable { span, reason })?
+            }
+            Err(reason) => return Err(ConvertError::Unreachable { span, reason }),
+        };
+        self.position = Some(target);
+        self.axes = axes;
+        self.stats.positioning_moves += 1;
+        let written_axes = self.axis_units(axes);
+        let z = to_units(target[2], self.options.decimals.linear);
+        let e = to_units(target[3], self.options.decimals.extrusion);
+        self.buf.clear();
+        self.buf.extend_from_slice(b"G0");
+        self.push_axes(written_axes);
+        push_word(&mut self.buf, 'Z', z, self.options.decimals.linear);
+        self.push_e(e);
+        self.buf.push(b'\n');
+        self.out.write_all(&self.buf)?;
+        self.written.axes = written_axes;
+        self.written.z = z;
+        self.written.z_known = true;
+        self.written.e = e;
+        Ok(())
+    }
+
+    fn axis_units(&self, axes: [f64; 2]) -> [i64; 2] {
+        [0, 1].map(|i| to_units(axes[i] * self.axis_scale[i], self.axis_decimals[i]))
+    }
+
+    fn push_axes(&mut self, units: [i64; 2]) {
+        let letters = self.options.letters();
+        for i in 0..2 {
+            push_word(&mut self.buf, letters[i], units[i], self.axis_decimals[i]);
+        }
+    }
+
+    /// E word for a point whose machine E is `e_units`, if the E position changes.
+    fn push_e(&mut self, e_units: i64) {
+        let decimals = self.options.decimals.extrusion;
+        if e_units == self.written.e {
+            return;
+        }
+        match self.options.extrusion {
+            Extrusion::Relative => push_word(&mut self.buf, 'E', e_units - self.written.e, decimals),
+            Extrusion::Absolute => push_word(&mut self.buf, 'E', e_units - self.written.e_offset, decimals),
+        }
+    }
+
+    /// Writes one `G1` to the given axes / Z / E that takes `time` seconds; `feed` (mm/s) is the E speed for
+    /// extrude-only lines. Returns false when nothing changes after rounding (nothing written).
+    fn write_motion(&mut self, axes: [f64; 2], z: f64, e_units: i64, time: f64, feed: f64) -> Result<bool, ConvertError> {
+        let units = self.axis_units(axes);
+        let linear = self.options.decimals.linear;
+        let z_units = to_units(z, linear);
+        let moved = [0, 1].map(|i| (units[i] - self.written.axes[i]) as f64 / scale(self.axis_decimals[i]));
+        let dz = if self.written.z_known { (z_units - self.written.z) as f64 / scale(linear) } else { 0.0 };
+        let motor_length = (moved[0] * moved[0] + moved[1] * moved[1] + dz * dz).sqrt();
+        let extrudes = e_units != self.written.e;
+        if motor_length == 0.0 && !extrudes && self.written.z_known {
+            return Ok(false);
+        }
+        self.buf.clear();
+        self.buf.extend_from_slice(b"G1");
+        if units != self.written.axes {
+            self.push_axes(units);
+        }
+        if !self.written.z_known || z_units != self.written.z {
+            push_word(&mut self.buf, 'Z', z_units, linear);
+        }
+        self.push_e(e_units);
+        let f = match self.options.feed {
+            FeedMode::InverseTime => 60.0 / time.max(1e-9),
+            FeedMode::MotorSpace if motor_length > 0.0 && time > 0.0 => motor_length / time * 60.0,
+            FeedMode::MotorSpace => feed * 60.0,
+        };
+        let f_decimals = feed_decimals(f);
+        self.buf.extend_from_slice(b" F");
+        push_units(&mut self.buf, to_units(f, f_decimals), f_decimals);
+        self.buf.push(b'\n');
+        self.out.write_all(&self.buf)?;
+        self.written.axes = units;
+        self.written.z = z_units;
+        self.written.z_known = true;
+        self.written.e = e_units;
+        Ok(true)
+    }
+
+    fn write_raw(&mut self, text: &str) -> Result<(), ConvertError> {
+        self.out.write_all(text.as_bytes())?;
+        self.out.write_all(b"\n")?;
+        Ok(())
+    }
+
+    fn write_note(&mut self, raw: &str, why: &str) -> Result<(), ConvertError> {
+        let code = raw.split(';').next().unwrap_or(raw).trim();
+        writeln!(self.out, "; {code} ({why})")?;
+        Ok(())
+    }
+}
+
+fn check_feed(span: Span, feed: f64) -> Result<(), ConvertError> {
+    if feed.is_finite() && feed > 0.0 {
+        Ok(())
+    } else {
+        Err(ConvertError::Unsupported { span, what: "a move".into(), why: format!("its feed rate {feed} mm/s is not positive") })
+    }
+}
+
+fn xyz(p: [f64; 4]) -> [f64; 3] {
+    [p[0], p[1], p[2]]
+}
+
+/// Commands written through as their raw line.
+fn passes_through(c: &Command) -> bool {
+    match c {
+        Command::Move(_)
+        | Command::Arc(_)
+        | Command::Home { .. }
+        | Command::SetPosition { .. }
+        | Command::SetKinematicPosition { .. }
+        | Command::SpeedFactor(_)
+        | Command::ExtrudeFactor(_) => false,
+        Command::Other { name } => !is_mode_command(name),
+        _ => true,
+    }
+}
+
+/// Positioning-mode commands the conversion consumes.
+fn is_mode_command(name: &str) -> bool {
+    ["G90", "G91", "M82", "M83"].iter().any(|m| name.eq_ignore_ascii_case(m))
+}
+
+/// Worst nozzle displacement (mm) from rounding the written axes, for radii up to 1 m.
+fn rounding_budget(rotary: [bool; 2], axis_scale: [f64; 2], decimals: [u8; 2]) -> f64 {
+    let per_axis = [0, 1].map(|i| {
+        let half_unit = 0.5 / scale(decimals[i]) / axis_scale[i];
+        if rotary[i] { half_unit * 1000.0 } else { half_unit }
+    });
+    per_axis[0].hypot(per_axis[1])
+}
+
+fn validate(o: &ConvertOptions) -> Result<(), ConvertError> {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    match o.segmentation {
+        Segmentation::Adaptive { tolerance } if !positive(tolerance) => {
+            return Err(ConvertError::Options("tolerance must be a positive number of mm".into()));
+        }
+        Segmentation::Fixed { segments_per_second, min_length } if !positive(segments_per_second) || !positive(min_length) => {
+            return Err(ConvertError::Options("fixed segmentation needs positive rate and length".into()));
+        }
+        _ => {}
+    }
+    if !positive(o.flip_speed) {
+        return Err(ConvertError::Options("flip speed must be positive".into()));
+    }
+    let d = o.decimals;
+    if d.linear > 9 || d.angle > 9 || d.extrusion > 9 {
+        return Err(ConvertError::Options("at most 9 decimals".into()));
+    }
+    if o.translate.iter().any(|v| !v.is_finite()) || !positive(o.scale_xy) {
+        return Err(ConvertError::Options("placement offset must be finite".into()));
+    }
+    Ok(())
+}

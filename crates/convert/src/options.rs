@@ -1,0 +1,133 @@
+//! Conversion options: output axes, tolerance, units, feed convention, extrusion mode, decimals.
+
+/// Which motor axes the output G-code drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Target {
+    /// Polar firmware: radius (the `stepper_arm` motor, mm) and bed angle (the `stepper_bed` motor), Z, E.
+    #[default]
+    Cylindrical,
+    /// Raw motor positions: the machine's first two non-Z motors in its own order (SCARA: motor a, motor b;
+    /// polar: bed, arm), Z, E.
+    Joints,
+}
+
+/// Unit in which rotary axes are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AngleUnit {
+    #[default]
+    Degrees,
+    Radians,
+}
+
+/// How the output's `F` words make each segment take its Cartesian time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FeedMode {
+    /// `F` in output-axis units per minute: `F = motor-space length of the segment / Cartesian time`, where the
+    /// motor-space length is `√(Δa² + Δb² + Δz²)` in written units (an angle in degrees or radians counts as
+    /// that many mm). Extrude-only moves keep the requested E speed. For firmware that interprets F in its
+    /// own axis units (Marlin POLAR/SCARA with segmentation off, RRF with feed in joint units).
+    #[default]
+    MotorSpace,
+    /// Inverse time: a `G93` before the first move, then every motion line has `F = 1 / minutes` for that
+    /// segment, and `G94` restores units-per-minute at the end.
+    InverseTime,
+}
+
+/// How the output writes E.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Extrusion {
+    /// `M83`: each line carries the E delta of its segment.
+    #[default]
+    Relative,
+    /// `M82`: each line carries the absolute E; input `G92 E` resets are written through.
+    Absolute,
+}
+
+/// How a move is cut into segments that are straight in motor space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Segmentation {
+    /// Bounded Cartesian chord error: the nozzle stays within `tolerance` mm of the intended path when the
+    /// firmware interpolates linearly in motor space between written points.
+    Adaptive { tolerance: f64 },
+    /// Firmware-style fixed rule (for comparison): `n = round(time · segments_per_second)`, at most
+    /// `length / min_length`, at least 1 (Marlin: 200/s or 180/s polar, 0.5 mm; RRF: 100/s, 0.2 mm).
+    Fixed { segments_per_second: f64, min_length: f64 },
+}
+
+impl Segmentation {
+    pub const DEFAULT_TOLERANCE: f64 = 0.005;
+    pub const MARLIN: Segmentation = Segmentation::Fixed { segments_per_second: 200.0, min_length: 0.5 };
+    pub const MARLIN_POLAR: Segmentation = Segmentation::Fixed { segments_per_second: 180.0, min_length: 0.5 };
+    pub const RRF: Segmentation = Segmentation::Fixed { segments_per_second: 100.0, min_length: 0.2 };
+}
+
+impl Default for Segmentation {
+    fn default() -> Self {
+        Segmentation::Adaptive { tolerance: Self::DEFAULT_TOLERANCE }
+    }
+}
+
+/// Digits after the decimal point in the output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Decimals {
+    /// Linear axes (mm): radius, Z, Cartesian X/Y.
+    pub linear: u8,
+    /// Rotary axes (in the chosen angle unit).
+    pub angle: u8,
+    pub extrusion: u8,
+}
+
+impl Default for Decimals {
+    /// 4 / 6 / 5: rounding moves the nozzle by < 0.0001 mm at 300 mm radius, far below the tolerance.
+    fn default() -> Self {
+        Decimals { linear: 4, angle: 6, extrusion: 5 }
+    }
+}
+
+/// All options of a conversion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConvertOptions {
+    pub target: Target,
+    pub segmentation: Segmentation,
+    /// Letters of the two planar output axes; `None` = `X`, `Y` (polar: X = radius, Y = angle, as Marlin
+    /// POLAR and RRF expect; SCARA: X = a, Y = b). The centring thesis writes `R`, `T`.
+    pub axis_letters: Option<[char; 2]>,
+    pub angle_unit: AngleUnit,
+    pub feed: FeedMode,
+    pub extrusion: Extrusion,
+    pub decimals: Decimals,
+    /// Angular speed (rad/s) of the rotate-in-place move at the polar centre.
+    pub flip_speed: f64,
+    /// Part placement: the input's XY is scaled about the origin by `scale_xy`, then shifted by
+    /// `translate` (mm), before conversion. Z and E are not changed.
+    pub scale_xy: f64,
+    pub translate: [f64; 2],
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions {
+            target: Target::default(),
+            segmentation: Segmentation::default(),
+            axis_letters: None,
+            angle_unit: AngleUnit::default(),
+            feed: FeedMode::default(),
+            extrusion: Extrusion::default(),
+            decimals: Decimals::default(),
+            flip_speed: std::f64::consts::TAU,
+            scale_xy: 1.0,
+            translate: [0.0, 0.0],
+        }
+    }
+}
+
+impl ConvertOptions {
+    pub fn letters(&self) -> [char; 2] {
+        self.axis_letters.unwrap_or(['X', 'Y'])
+    }
+
+    /// An input XY point placed on the machine (see [`ConvertOptions::translate`]).
+    pub fn place(&self, xy: [f64; 2]) -> [f64; 2] {
+        [xy[0] * self.scale_xy + self.translate[0], xy[1] * self.scale_xy + self.translate[1]]
+    }
+}

@@ -1,0 +1,167 @@
+//! Cutting one path into pieces that are straight in output-axis (motor) space.
+//!
+//! Adaptive rule: a piece `[s0, s1]` is accepted when the toolhead, moved linearly in motor space between
+//! the piece's end points, stays within the target of the intended sub-path. The deviation is measured by
+//! forward kinematics at three interior points (the error of a short motor-space chord is close to a
+//! parabola `u(1−u)·k`, so these find its peak within a few percent; the target keeps a margin below the
+//! tolerance for that), and a piece may not turn a rotary axis by more than [`MAX_ANGLE_STEP`], so the
+//! parabola model holds. Step sizes follow the chord-error law `e ∝ h²`: after each trial the next length
+//! is `h·√(target/e)`, so long pieces where the map is nearly linear and short ones near the polar centre
+//! or a singular SCARA pose, without a fixed number of segments per second.
+
+use kinematics::{MotorUnit, ReachError};
+
+use crate::axes::AxisMap;
+use crate::path::Path;
+
+/// Largest turn of a rotary output axis in one piece (rad).
+pub const MAX_ANGLE_STEP: f64 = std::f64::consts::FRAC_PI_4;
+/// Interior points where a piece's deviation is evaluated: the middle first, then the quarters.
+const PROBES: [f64; 3] = [0.5, 0.25, 0.75];
+/// A piece whose middle deviates less than this share of the target needs no quarter probes: in the
+/// parabola regime the quarters deviate ¾ as much as the middle.
+const MIDDLE_ONLY: f64 = 0.25;
+/// A piece shorter than this (mm) that still misses the target means the map is not smooth here.
+const MIN_PIECE_MM: f64 = 1e-7;
+
+/// A written point: path parameter and output axes (mm / rad).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Breakpoint {
+    pub s: f64,
+    pub axes: [f64; 2],
+}
+
+/// Why a path could not be cut.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CutError {
+    Reach(ReachError),
+    /// The chord error stays above the target even for tiny pieces, near path parameter `s`.
+    NoConvergence { s: f64 },
+}
+
+impl From<ReachError> for CutError {
+    fn from(e: ReachError) -> Self {
+        CutError::Reach(e)
+    }
+}
+
+/// The largest deviation found at the probe points of the motor-space chord `a0 → a1` over `[s0, s1]`.
+pub fn chord_deviation(
+    path: &Path,
+    map: &AxisMap,
+    (s0, a0): (f64, [f64; 2]),
+    (s1, a1): (f64, [f64; 2]),
+    probes: &[f64],
+) -> Result<f64, ReachError> {
+    let z0 = path.point(s0)[2];
+    let z1 = path.point(s1)[2];
+    let part = path.part(s0, s1);
+    let mut worst = 0.0f64;
+    for &u in probes {
+        let a = [a0[0] + (a1[0] - a0[0]) * u, a0[1] + (a1[1] - a0[1]) * u];
+        let q = map.from_axes(a, z0 + (z1 - z0) * u)?;
+        worst = worst.max(part.distance(q));
+    }
+    Ok(worst)
+}
+
+/// Deviation of a trial piece: the middle probe, and the quarter probes unless the middle is far inside the
+/// target. A probe where the map fails counts as infinite (the piece is split).
+fn probe(path: &Path, map: &AxisMap, from: (f64, [f64; 2]), to: (f64, [f64; 2]), target: f64) -> f64 {
+    let middle = chord_deviation(path, map, from, to, &PROBES[..1]).unwrap_or(f64::INFINITY);
+    if middle <= target * MIDDLE_ONLY || middle > target {
+        return middle;
+    }
+    let quarters = chord_deviation(path, map, from, to, &PROBES[1..]).unwrap_or(f64::INFINITY);
+    middle.max(quarters)
+}
+
+/// Adaptive cut of `path` from `(s_start, a_start)` to `s_end`; pushes the end point of every piece.
+pub fn cut_adaptive(
+    path: &Path,
+    map: &AxisMap,
+    (s_start, a_start): (f64, [f64; 2]),
+    s_end: f64,
+    target: f64,
+    out: &mut Vec<Breakpoint>,
+) -> Result<(), CutError> {
+    let rotary = map.units().map(|u| u == MotorUnit::Rad);
+    let length = path.length().max(path.xy_length());
+    let (mut s0, mut a0) = (s_start, a_start);
+    let mut h = s_end - s_start;
+    while s0 < s_end {
+        let mut s1 = (s0 + h).min(s_end);
+        // Do not leave a sliver at the end.
+        if (s_end - s1) * length < 1e-6 {
+            s1 = s_end;
+        }
+        let trial = map.to_axes(path.point(s1), a0);
+        let error = match trial {
+            Ok(a1) if turns_too_far(a0, a1, rotary) => f64::INFINITY,
+            Ok(a1) => probe(path, map, (s0, a0), (s1, a1), target),
+            Err(ReachError::AtCentre { .. }) => f64::INFINITY,
+            Err(e) => return Err(e.into()),
+        };
+        let piece = s1 - s0;
+        let next = match trial {
+            Ok(a1) if error <= target => {
+                out.push(Breakpoint { s: s1, axes: a1 });
+                s0 = s1;
+                a0 = a1;
+                piece * growth(target, error)
+            }
+            _ => {
+                if piece * length < MIN_PIECE_MM {
+                    return Err(CutError::NoConvergence { s: s0 });
+                }
+                piece * shrink(target, error)
+            }
+        };
+        h = balanced(s_end - s0, next);
+    }
+    Ok(())
+}
+
+/// The piece length that divides `remaining` into equal pieces no longer than `preferred`, so a move does
+/// not end with a needlessly short piece.
+fn balanced(remaining: f64, preferred: f64) -> f64 {
+    if remaining <= 0.0 || preferred <= 0.0 {
+        return preferred;
+    }
+    let pieces = (remaining / preferred).ceil().max(1.0);
+    if pieces > 1e6 { preferred } else { remaining / pieces }
+}
+
+/// Fixed cut into `n` pieces of equal length.
+pub fn cut_fixed(
+    path: &Path,
+    map: &AxisMap,
+    (s_start, a_start): (f64, [f64; 2]),
+    s_end: f64,
+    n: usize,
+    out: &mut Vec<Breakpoint>,
+) -> Result<(), CutError> {
+    let n = n.max(1);
+    let mut near = a_start;
+    for i in 1..=n {
+        let s = if i == n { s_end } else { s_start + (s_end - s_start) * (i as f64 / n as f64) };
+        let axes = map.to_axes(path.point(s), near)?;
+        out.push(Breakpoint { s, axes });
+        near = axes;
+    }
+    Ok(())
+}
+
+fn turns_too_far(a0: [f64; 2], a1: [f64; 2], rotary: [bool; 2]) -> bool {
+    (rotary[0] && (a1[0] - a0[0]).abs() > MAX_ANGLE_STEP) || (rotary[1] && (a1[1] - a0[1]).abs() > MAX_ANGLE_STEP)
+}
+
+/// Next piece length factor after an accepted piece with deviation `error` (chord error ∝ h²).
+fn growth(target: f64, error: f64) -> f64 {
+    if error <= 0.0 { 4.0 } else { (0.95 * (target / error).sqrt()).clamp(0.5, 4.0) }
+}
+
+/// Piece length factor after a rejected trial.
+fn shrink(target: f64, error: f64) -> f64 {
+    if error.is_finite() { (0.95 * (target / error).sqrt()).clamp(0.1, 0.7) } else { 0.5 }
+}

@@ -1,0 +1,293 @@
+//! Verification of converted G-code: replays the written motor-space lines through forward kinematics,
+//! interpolating linearly in motor space as firmware does, and measures the nozzle's distance from the
+//! intended Cartesian path densely along every written segment; also totals extrusion and print time at the
+//! requested speeds on both sides.
+//!
+//! Matching: each written segment is compared with the input move whose path contains its end point (the
+//! converter writes every segment end on the path); input moves are consumed in order, looking a few moves
+//! ahead to step over moves that wrote nothing.
+
+use std::collections::VecDeque;
+
+use gcode::command::Command;
+use kinematics::MotorUnit;
+
+use crate::axes::AxisMap;
+use crate::options::{AngleUnit, ConvertOptions, Extrusion};
+use crate::path::Path;
+
+/// Samples per written segment (evenly spaced, end points included).
+pub const SAMPLES_PER_SEGMENT: usize = 32;
+/// A segment end farther than this (mm) from a move's path does not belong to it.
+const MATCH_DISTANCE: f64 = 1e-3;
+/// How many input moves ahead a written segment may belong to.
+const LOOKAHEAD: usize = 64;
+
+/// What verification found.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct VerifyReport {
+    /// Largest nozzle distance from the intended path (mm).
+    pub max_deviation: f64,
+    /// Where the largest deviation occurs (Cartesian XY).
+    pub worst_point: [f64; 2],
+    /// Root mean square over all samples (mm).
+    pub rms_deviation: f64,
+    /// Motion lines checked (positioning `G0`s excluded).
+    pub segments: u64,
+    pub samples: u64,
+    /// Written segments whose end point lies on none of the next input moves.
+    pub unmatched: u64,
+    /// Net extrusion (mm of filament) of the input and of the output.
+    pub extrusion_in: f64,
+    pub extrusion_out: f64,
+    /// Print time (s) at the requested speeds: input Cartesian, output as firmware times the written lines.
+    pub time_in: f64,
+    pub time_out: f64,
+    /// Part of `time_out` spent rotating in place at the polar centre.
+    pub flip_time: f64,
+}
+
+/// An output line verification could not read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("output line {line}: cannot read `{text}`")]
+pub struct VerifyError {
+    pub line: usize,
+    pub text: String,
+}
+
+/// One input move with a known start.
+#[derive(Debug, Clone, Copy)]
+struct Intended {
+    path: Path,
+}
+
+/// Replays `output` (written by a converter with `map` and `options`) against the `input` commands.
+pub fn verify<'a>(
+    map: &AxisMap,
+    options: &ConvertOptions,
+    input: impl IntoIterator<Item = &'a Command>,
+    output: &str,
+) -> Result<VerifyReport, VerifyError> {
+    let mut report = VerifyReport::default();
+    let mut moves = IntendedMoves::new(input.into_iter(), options);
+    let mut reader = OutputReader::new(map, options);
+    let mut window: VecDeque<Intended> = VecDeque::new();
+    let mut squares = 0.0;
+    for (index, line) in output.lines().enumerate() {
+        let Some(segment) = reader.read(line).map_err(|()| VerifyError { line: index + 1, text: line.to_string() })? else {
+            continue;
+        };
+        if segment.positioning {
+            continue;
+        }
+        report.segments += 1;
+        report.time_out += segment.time;
+        let (Ok(start), Ok(end)) = (map.from_axes(segment.from, segment.z[0]), map.from_axes(segment.to, segment.z[1])) else {
+            report.unmatched += 1;
+            continue;
+        };
+        if segment.from != segment.to && (start[0] - end[0]).hypot(start[1] - end[1]) < 1e-5 {
+            report.flip_time += segment.time;
+        }
+        while window.len() < LOOKAHEAD {
+            match moves.next() {
+                Some(m) => window.push_back(m),
+                None => break,
+            }
+        }
+        let Some(k) = window.iter().position(|m| m.path.distance_xy(end, 0.0, 1.0) <= MATCH_DISTANCE) else {
+            report.unmatched += 1;
+            continue;
+        };
+        window.drain(..k);
+        let path = window[0].path;
+        for i in 0..=SAMPLES_PER_SEGMENT {
+            let u = i as f64 / SAMPLES_PER_SEGMENT as f64;
+            let a = [0, 1].map(|j| segment.from[j] + (segment.to[j] - segment.from[j]) * u);
+            let z = segment.z[0] + (segment.z[1] - segment.z[0]) * u;
+            let Ok(q) = map.from_axes(a, z) else {
+                report.unmatched += 1;
+                break;
+            };
+            let d = path.distance_xy(q, 0.0, 1.0);
+            squares += d * d;
+            report.samples += 1;
+            if d > report.max_deviation {
+                report.max_deviation = d;
+                report.worst_point = q;
+            }
+        }
+    }
+    moves.by_ref().for_each(drop);
+    report.rms_deviation = if report.samples > 0 { (squares / report.samples as f64).sqrt() } else { 0.0 };
+    report.extrusion_in = moves.extrusion;
+    report.time_in = moves.time;
+    report.extrusion_out = reader.extrusion;
+    Ok(report)
+}
+
+/// The input's moves with known starts, with extrusion and time totals.
+struct IntendedMoves<'o, I> {
+    commands: I,
+    options: &'o ConvertOptions,
+    position: Option<[f64; 4]>,
+    last_e: f64,
+    extrusion: f64,
+    time: f64,
+}
+
+impl<'a, 'o, I: Iterator<Item = &'a Command>> IntendedMoves<'o, I> {
+    fn new(commands: I, options: &'o ConvertOptions) -> Self {
+        IntendedMoves { commands, options, position: None, last_e: 0.0, extrusion: 0.0, time: 0.0 }
+    }
+
+    fn placed(&self, p: [f64; 4]) -> [f64; 4] {
+        let [x, y] = self.options.place([p[0], p[1]]);
+        [x, y, p[2], p[3]]
+    }
+
+    /// Records a move to `target`; returns its start when known.
+    fn advance(&mut self, target: [f64; 4]) -> Option<[f64; 4]> {
+        self.extrusion += target[3] - self.last_e;
+        self.last_e = target[3];
+        self.position.replace(target)
+    }
+}
+
+impl<'a, I: Iterator<Item = &'a Command>> Iterator for IntendedMoves<'_, I> {
+    type Item = Intended;
+
+    fn next(&mut self) -> Option<Intended> {
+        loop {
+            let (path, feed, de) = match self.commands.next()? {
+                Command::Move(m) => {
+                    let target = self.placed(m.target);
+                    let Some(start) = self.advance(target) else { continue };
+                    let path = Path::Line { from: [start[0], start[1], start[2]], to: [target[0], target[1], target[2]] };
+                    (path, m.feed, target[3] - start[3])
+                }
+                Command::Arc(a) => {
+                    let target = self.placed(a.target);
+                    let Some(start) = self.advance(target) else { continue };
+                    let centre = self.options.place(a.centre);
+                    let path = Path::arc([start[0], start[1], start[2]], [target[0], target[1], target[2]], centre, a.clockwise, a.turns);
+                    (path, a.feed, target[3] - start[3])
+                }
+                Command::Home { .. } => {
+                    self.position = None;
+                    continue;
+                }
+                _ => continue,
+            };
+            let length = path.length();
+            let distance = if length > 0.0 { length } else { de.abs() };
+            if feed > 0.0 {
+                self.time += distance / feed;
+            }
+            if distance > 0.0 {
+                return Some(Intended { path });
+            }
+        }
+    }
+}
+
+/// One written motion line, in internal units (mm, rad).
+struct WrittenSegment {
+    from: [f64; 2],
+    to: [f64; 2],
+    z: [f64; 2],
+    time: f64,
+    positioning: bool,
+}
+
+/// Reads the converter's output lines.
+struct OutputReader {
+    letters: [char; 2],
+    /// Written unit → internal unit, per planar axis.
+    to_internal: [f64; 2],
+    relative_e: bool,
+    axes: [f64; 2],
+    z: f64,
+    e: f64,
+    extrusion: f64,
+    inverse_time: bool,
+}
+
+impl OutputReader {
+    fn new(map: &AxisMap, options: &ConvertOptions) -> Self {
+        let angle = match options.angle_unit {
+            AngleUnit::Degrees => std::f64::consts::PI / 180.0,
+            AngleUnit::Radians => 1.0,
+        };
+        OutputReader {
+            letters: options.letters(),
+            to_internal: map.units().map(|u| if u == MotorUnit::Rad { angle } else { 1.0 }),
+            relative_e: options.extrusion == Extrusion::Relative,
+            axes: [0.0; 2],
+            z: 0.0,
+            e: 0.0,
+            extrusion: 0.0,
+            inverse_time: false,
+        }
+    }
+
+    /// Applies one line; returns the motion segment it writes, if any.
+    fn read(&mut self, line: &str) -> Result<Option<WrittenSegment>, ()> {
+        let code = line.split(';').next().unwrap_or("").trim();
+        let mut words = code.split_ascii_whitespace();
+        let Some(head) = words.next() else { return Ok(None) };
+        match head {
+            "G93" => self.inverse_time = true,
+            "G94" => self.inverse_time = false,
+            "G92" => {
+                for w in words {
+                    if let Some(v) = w.strip_prefix('E') {
+                        self.e = v.parse().map_err(drop)?;
+                    }
+                }
+            }
+            "G0" | "G1" => return self.motion(head == "G0", words).map(Some),
+            _ => {}
+        }
+        Ok(None)
+    }
+
+    fn motion<'l>(&mut self, positioning: bool, words: impl Iterator<Item = &'l str>) -> Result<WrittenSegment, ()> {
+        let (from, z0) = (self.axes, self.z);
+        let mut written_delta = [0.0f64; 3];
+        let mut de = 0.0;
+        let mut feed = None;
+        for w in words {
+            let mut chars = w.chars();
+            let letter = chars.next().ok_or(())?;
+            let value: f64 = chars.as_str().parse().map_err(drop)?;
+            if let Some(i) = self.letters.iter().position(|&l| l == letter) {
+                let internal = value * self.to_internal[i];
+                written_delta[i] = (internal - self.axes[i]) / self.to_internal[i];
+                self.axes[i] = internal;
+            } else {
+                match letter {
+                    'Z' => {
+                        written_delta[2] = value - self.z;
+                        self.z = value;
+                    }
+                    'E' => {
+                        de = if self.relative_e { value } else { value - self.e };
+                        self.e = if self.relative_e { self.e + value } else { value };
+                    }
+                    'F' => feed = Some(value),
+                    _ => return Err(()),
+                }
+            }
+        }
+        self.extrusion += de;
+        let length = written_delta.iter().map(|d| d * d).sum::<f64>().sqrt();
+        let time = match feed {
+            _ if positioning => 0.0,
+            Some(f) if self.inverse_time && f > 0.0 => 60.0 / f,
+            Some(f) if f > 0.0 => 60.0 * if length > 0.0 { length } else { de.abs() } / f,
+            _ => return Err(()),
+        };
+        Ok(WrittenSegment { from, to: self.axes, z: [z0, self.z], time, positioning })
+    }
+}

@@ -1,0 +1,1056 @@
+//! Modal interpreter: turns lexed lines into [`Command`]s with Klipper's `gcode_move` semantics
+//! (G90/G91, M82/M83, G92 offsets, M220/M221 factors, G20/G21 units, arcs kept whole).
+//!
+//! State is machine coordinates (`last_position`) plus G92 offsets (`base_position`); the G-code-space
+//! position is `last − base` (E divided by the extrude factor, as Klipper reports it).
+//! G20 (inches) scales every length the line gives: X Y Z E, I J R and F. The interpreter never
+//! guesses where homing leaves the toolhead: the caller tells it with [`Interpreter::set_position`].
+
+use std::collections::VecDeque;
+use std::io::BufRead;
+use std::sync::Arc;
+
+use crate::command::{
+    AccelParams, Arc as ArcMove, Command, Meta, Move, Position, Span, Spanned, VelocityLimit,
+};
+use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
+use crate::lexer::{CommandWord, Line, Word};
+use crate::meta::{CommentMeta, comment_meta};
+use crate::reader::Reader;
+
+/// Interpreter settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InterpreterOptions {
+    /// Speed before the first F, mm/s (Klipper: 25).
+    pub initial_speed: f64,
+    /// Machine position at start.
+    pub initial_position: Position,
+}
+
+impl Default for InterpreterOptions {
+    fn default() -> Self {
+        InterpreterOptions {
+            initial_speed: 25.0,
+            initial_position: [0.0; 4],
+        }
+    }
+}
+
+/// An interpretation failure: where and what (boxed: the success path stays small and fast).
+type Fail = Box<(Span, ErrorKind)>;
+
+/// Arc plane (G17/G18/G19); only XY arcs are supported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Plane {
+    Xy,
+    Xz,
+    Yz,
+}
+
+/// Start and end radii of an arc may differ by this much (mm) … (also how far an R arc's half chord
+/// may exceed R: slicers round R and the end point to 3 decimals)
+const ARC_RADIUS_TOLERANCE_MM: f64 = 0.005;
+/// … or by this fraction of the radius, whichever is larger.
+const ARC_RADIUS_TOLERANCE_REL: f64 = 1e-3;
+
+/// The modal state and the queue of interpreted commands.
+#[derive(Debug, Clone)]
+pub struct Interpreter {
+    last: Position,
+    base: Position,
+    absolute_coord: bool,
+    absolute_extrude: bool,
+    unit: f64,
+    speed: f64,
+    speed_factor: f64,
+    extrude_factor: f64,
+    plane: Plane,
+    queue: VecDeque<Spanned<Command>>,
+    /// A layer start seen whose Z has not arrived yet.
+    pending_layer: Option<Span>,
+    warnings: Warnings,
+}
+
+impl Default for Interpreter {
+    fn default() -> Self {
+        Self::new(InterpreterOptions::default())
+    }
+}
+
+/// Letter bit for parameter masks.
+const fn bit(letter: u8) -> u32 {
+    1 << (letter - b'A')
+}
+
+const XYZEF: u32 = bit(b'X') | bit(b'Y') | bit(b'Z') | bit(b'E') | bit(b'F');
+
+impl Interpreter {
+    pub fn new(options: InterpreterOptions) -> Self {
+        Interpreter {
+            last: options.initial_position,
+            base: [0.0; 4],
+            absolute_coord: true,
+            absolute_extrude: true,
+            unit: 1.0,
+            speed: options.initial_speed,
+            speed_factor: 1.0 / 60.0,
+            extrude_factor: 1.0,
+            plane: Plane::Xy,
+            queue: VecDeque::new(),
+            pending_layer: None,
+            warnings: Warnings::default(),
+        }
+    }
+
+    /// Machine position after the commands interpreted so far.
+    pub fn last_position(&self) -> Position {
+        self.last
+    }
+
+    /// G92 offsets (machine = G-code + base).
+    pub fn base_position(&self) -> Position {
+        self.base
+    }
+
+    /// Position in the G-code frame (`last − base`, E divided by the extrude factor), mm.
+    pub fn gcode_position(&self) -> Position {
+        let mut p = [0.0; 4];
+        for (i, value) in p.iter_mut().enumerate() {
+            *value = self.last[i] - self.base[i];
+        }
+        p[3] /= self.extrude_factor;
+        p
+    }
+
+    /// Declares the machine position (after homing or `SET_KINEMATIC_POSITION`).
+    pub fn set_position(&mut self, position: Position) {
+        self.last = position;
+    }
+
+    /// Current requested speed, mm/s.
+    pub fn speed(&self) -> f64 {
+        self.speed
+    }
+
+    /// G90 (true) or G91.
+    pub fn absolute_coordinates(&self) -> bool {
+        self.absolute_coord
+    }
+
+    /// M82 (true) or M83.
+    pub fn absolute_extrusion(&self) -> bool {
+        self.absolute_extrude
+    }
+
+    /// M221 factor (1 = 100 %).
+    pub fn extrude_factor(&self) -> f64 {
+        self.extrude_factor
+    }
+
+    pub fn warnings(&self) -> &Warnings {
+        &self.warnings
+    }
+
+    pub fn take_warnings(&mut self) -> Vec<Warning> {
+        self.warnings.take()
+    }
+
+    /// Next interpreted command, if any is queued.
+    pub fn pop_command(&mut self) -> Option<Spanned<Command>> {
+        self.queue.pop_front()
+    }
+
+    /// End of input: emits a layer start still waiting for its Z.
+    pub fn finish(&mut self) {
+        self.flush_pending_layer();
+    }
+
+    /// Interprets one line, queueing its commands (none on error: the state is left unchanged).
+    pub fn interpret_line(&mut self, line: &Line<'_>, source: &Arc<str>) -> Result<(), GcodeError> {
+        if let Some(command) = self.interpret(line, source)? {
+            self.queue.push_front(command);
+        }
+        Ok(())
+    }
+
+    /// Interprets one line; the line's main command is returned directly when nothing is queued
+    /// before it (the common case: no queue round trip), anything else is queued after it.
+    fn interpret(
+        &mut self,
+        line: &Line<'_>,
+        source: &Arc<str>,
+    ) -> Result<Option<Spanned<Command>>, GcodeError> {
+        let mut direct = None;
+        if let Some(word) = line.command() {
+            let command = self
+                .command(line, word)
+                .map_err(|fail| GcodeError::new(source, fail.0, line.text(), fail.1))?;
+            self.flush_pending_layer();
+            if let Some(value) = command {
+                let command = Spanned {
+                    span: line.command_extent(),
+                    value,
+                };
+                if self.queue.is_empty() {
+                    direct = Some(command);
+                } else {
+                    self.queue.push_back(command);
+                }
+            }
+        }
+        if line.has_comments() {
+            self.comments(line);
+        }
+        Ok(direct)
+    }
+
+    fn flush_pending_layer(&mut self) {
+        if let Some(span) = self.pending_layer.take() {
+            let value = Command::Meta(Meta::LayerChange {
+                index: None,
+                z: None,
+            });
+            self.queue.push_back(Spanned { span, value });
+        }
+    }
+
+    fn comments(&mut self, line: &Line<'_>) {
+        for comment in line.comments().filter(|c| !c.parenthesised) {
+            match comment_meta(comment.text) {
+                None => {}
+                Some(CommentMeta::Meta(meta)) => {
+                    self.flush_pending_layer();
+                    self.queue.push_back(Spanned {
+                        span: comment.span,
+                        value: Command::Meta(meta),
+                    });
+                }
+                Some(CommentMeta::LayerStart) => {
+                    self.flush_pending_layer();
+                    self.pending_layer = Some(comment.span);
+                }
+                Some(CommentMeta::LayerZ(z)) => {
+                    if let Some(span) = self.pending_layer.take() {
+                        let value = Command::Meta(Meta::LayerChange {
+                            index: None,
+                            z: Some(z),
+                        });
+                        self.queue.push_back(Spanned { span, value });
+                    }
+                }
+            }
+        }
+    }
+
+    fn command(&mut self, line: &Line<'_>, word: CommandWord) -> Result<Option<Command>, Fail> {
+        match word {
+            CommandWord::Code {
+                letter: b'G',
+                major,
+                minor: None,
+            } => self.g_code(line, major),
+            CommandWord::Code {
+                letter: b'M',
+                major,
+                minor: None,
+            } => self.m_code(line, major),
+            CommandWord::Code { letter, .. } => {
+                if !matches!(letter, b'G' | b'M' | b'T') {
+                    self.warn(
+                        line.command_span(),
+                        WarningKind::UnknownCommandLetter,
+                        "unknown command letter",
+                    );
+                }
+                Ok(Some(other(line)))
+            }
+            CommandWord::Extended => self.extended(line),
+        }
+    }
+
+    fn g_code(&mut self, line: &Line<'_>, major: u32) -> Result<Option<Command>, Fail> {
+        let command = match major {
+            0 | 1 => Command::Move(self.linear_move(line, major == 0)?),
+            2 | 3 => Command::Arc(self.arc(line, major == 2)?),
+            4 => self.dwell(line)?,
+            17..=19 => {
+                self.plane = [Plane::Xy, Plane::Xz, Plane::Yz][(major - 17) as usize];
+                return Ok(None);
+            }
+            20 | 21 => {
+                self.unit = if major == 20 { 25.4 } else { 1.0 };
+                return Ok(None);
+            }
+            28 => {
+                self.check_letters(line, bit(b'X') | bit(b'Y') | bit(b'Z'));
+                let named = |l| line.word(l).is_some();
+                Command::Home {
+                    axes: [named(b'X'), named(b'Y'), named(b'Z')],
+                }
+            }
+            90 | 91 => {
+                self.absolute_coord = major == 90;
+                return Ok(None);
+            }
+            92 => self.set_gcode_position(line)?,
+            _ => other(line),
+        };
+        Ok(Some(command))
+    }
+
+    fn m_code(&mut self, line: &Line<'_>, major: u32) -> Result<Option<Command>, Fail> {
+        let command = match major {
+            82 | 83 => {
+                self.absolute_extrude = major == 82;
+                return Ok(None);
+            }
+            204 => {
+                self.check_letters(line, bit(b'S') | bit(b'P') | bit(b'T') | bit(b'R'));
+                Command::SetAccel(AccelParams {
+                    s: optional_value(line, b'S')?,
+                    p: optional_value(line, b'P')?,
+                    t: optional_value(line, b'T')?,
+                    r: optional_value(line, b'R')?,
+                })
+            }
+            220 => self.speed_override(line)?,
+            221 => self.extrude_override(line)?,
+            400 => Command::WaitForMoves,
+            _ => other(line),
+        };
+        Ok(Some(command))
+    }
+
+    /// G0/G1: Klipper's `cmd_G1`.
+    fn linear_move(&mut self, line: &Line<'_>, rapid: bool) -> Result<Move, Fail> {
+        let (target, named, feed) = self.target(line, XYZEF)?;
+        let speed = self.feed(feed)?;
+        self.last = target;
+        self.speed = speed;
+        Ok(Move {
+            target,
+            named,
+            feed: speed,
+            rapid,
+        })
+    }
+
+    /// New machine position from X Y Z E words (not yet committed) and the F word, in one pass over
+    /// the words that also warns about letters outside `allowed` and repeated letters.
+    #[allow(clippy::type_complexity)]
+    fn target<'l>(
+        &mut self,
+        line: &Line<'l>,
+        allowed: u32,
+    ) -> Result<(Position, [bool; 4], Option<&'l Word>), Fail> {
+        let mut target = self.last;
+        let mut named = [false; 4];
+        let mut feed = None;
+        let mut seen = 0u32;
+        for word in line.words() {
+            let letter_bit = bit(word.letter);
+            if allowed & letter_bit == 0 || seen & letter_bit != 0 {
+                self.letter_warning(word, allowed);
+            }
+            seen |= letter_bit;
+            let axis = match word.letter {
+                b'X' => 0,
+                b'Y' => 1,
+                b'Z' => 2,
+                b'E' => 3,
+                b'F' => {
+                    feed = Some(word);
+                    continue;
+                }
+                _ => continue,
+            };
+            let value = required(word)? * self.unit;
+            named[axis] = true;
+            target[axis] = if axis == 3 {
+                let value = value * self.extrude_factor;
+                if self.absolute_coord && self.absolute_extrude {
+                    value + self.base[3]
+                } else {
+                    target[3] + value
+                }
+            } else if self.absolute_coord {
+                value + self.base[axis]
+            } else {
+                target[axis] + value
+            };
+            if !target[axis].is_finite() {
+                return Err(Box::new((word.span, ErrorKind::NumberOverflow)));
+            }
+        }
+        Ok((target, named, feed))
+    }
+
+    /// Speed after this line's F word (if any), mm/s.
+    fn feed(&self, word: Option<&Word>) -> Result<f64, Fail> {
+        let Some(word) = word else {
+            return Ok(self.speed);
+        };
+        let f = required(word)?;
+        let speed = f * self.unit * self.speed_factor;
+        if f <= 0.0 || !speed.is_finite() || speed <= 0.0 {
+            return Err(Box::new((word.span, ErrorKind::InvalidFeedRate)));
+        }
+        Ok(speed)
+    }
+
+    /// G2/G3 in the XY plane, absolute mode only (as Klipper's `gcode_arcs`).
+    fn arc(&mut self, line: &Line<'_>, clockwise: bool) -> Result<ArcMove, Fail> {
+        let extent = line.command_extent();
+        if !self.absolute_coord {
+            return Err(Box::new((extent, ErrorKind::ArcRelativeMode)));
+        }
+        if self.plane != Plane::Xy {
+            return Err(Box::new((extent, ErrorKind::ArcPlaneUnsupported)));
+        }
+        let (target, _, feed) =
+            self.target(line, XYZEF | bit(b'I') | bit(b'J') | bit(b'R') | bit(b'P'))?;
+        let speed = self.feed(feed)?;
+        let start = self.last;
+        let i = optional_value(line, b'I')?.map(|v| v * self.unit);
+        let j = optional_value(line, b'J')?.map(|v| v * self.unit);
+        let offset = if i.is_some() || j.is_some() {
+            let offset = [i.unwrap_or(0.0), j.unwrap_or(0.0)];
+            if offset[0].hypot(offset[1]) == 0.0 {
+                return Err(Box::new((extent, ErrorKind::ArcZeroRadius)));
+            }
+            offset
+        } else if let Some(r_word) = line.word(b'R') {
+            let radius = required(r_word)? * self.unit;
+            centre_offset_from_radius(&start, &target, radius, clockwise)
+                .map_err(|kind| Box::new((extent, kind)))?
+        } else {
+            return Err(Box::new((extent, ErrorKind::ArcMissingCentre)));
+        };
+        let centre = [start[0] + offset[0], start[1] + offset[1]];
+        if !(centre[0].is_finite() && centre[1].is_finite()) {
+            return Err(Box::new((extent, ErrorKind::NumberOverflow)));
+        }
+        check_radii(&start, &target, &centre).map_err(|kind| Box::new((extent, kind)))?;
+        let turns = match line.word(b'P') {
+            None => 0,
+            Some(word) => turns(word)?,
+        };
+        let e_written = optional_value(line, b'E')?.map(|v| v * self.unit);
+        self.last = target;
+        self.speed = speed;
+        Ok(ArcMove {
+            start,
+            target,
+            centre,
+            offset,
+            clockwise,
+            turns,
+            feed: speed,
+            e_written,
+            base: self.base,
+            extrude_factor: self.extrude_factor,
+            absolute_extrude: self.absolute_extrude,
+        })
+    }
+
+    /// G4: `P` milliseconds or `S` seconds.
+    fn dwell(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
+        self.check_letters(line, bit(b'P') | bit(b'S'));
+        let (word, scale) = match (line.word(b'P'), line.word(b'S')) {
+            (Some(p), _) => (Some(p), 1e-3),
+            (None, s) => (s, 1.0),
+        };
+        let seconds = match word {
+            None => 0.0,
+            Some(word) => {
+                let value = required(word)?;
+                if value < 0.0 {
+                    return Err(Box::new((word.span, ErrorKind::NegativeDwell)));
+                }
+                value * scale
+            }
+        };
+        Ok(Command::Dwell { seconds })
+    }
+
+    /// G92: `base = last − value` for each named axis; bare G92 zeroes all four.
+    fn set_gcode_position(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
+        self.check_letters(line, XYZEF & !bit(b'F'));
+        let mut values = [None; 4];
+        for word in line.words() {
+            let axis = match word.letter {
+                b'X' => 0,
+                b'Y' => 1,
+                b'Z' => 2,
+                b'E' => 3,
+                _ => continue,
+            };
+            values[axis] = Some((required(word)? * self.unit, word.span));
+        }
+        let mut position = [None; 4];
+        if values.iter().all(Option::is_none) {
+            self.base = self.last;
+            return Ok(Command::SetPosition {
+                position: [Some(0.0); 4],
+            });
+        }
+        let mut base = self.base;
+        for (axis, value) in values.iter().enumerate() {
+            let Some((value, span)) = *value else {
+                continue;
+            };
+            let offset = if axis == 3 {
+                value * self.extrude_factor
+            } else {
+                value
+            };
+            base[axis] = self.last[axis] - offset;
+            if !base[axis].is_finite() {
+                return Err(Box::new((span, ErrorKind::NumberOverflow)));
+            }
+            position[axis] = Some(value);
+        }
+        self.base = base;
+        Ok(Command::SetPosition { position })
+    }
+
+    /// M220 S<percent>: rescales the current speed (Klipper keeps the requested F).
+    fn speed_override(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
+        self.check_letters(line, bit(b'S'));
+        let percent = positive_percent(line)?;
+        let factor = percent / (60.0 * 100.0);
+        let speed = self.speed / self.speed_factor * factor;
+        if !(speed.is_finite() && speed > 0.0) {
+            return Err(invalid_s(line));
+        }
+        self.speed = speed;
+        self.speed_factor = factor;
+        Ok(Command::SpeedFactor(percent))
+    }
+
+    /// M221 S<percent>: keeps the G-code E position continuous.
+    fn extrude_override(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
+        self.check_letters(line, bit(b'S'));
+        let percent = positive_percent(line)?;
+        let new_factor = percent / 100.0;
+        let last_e = self.last[3];
+        let e_value = (last_e - self.base[3]) / self.extrude_factor;
+        let base_e = last_e - e_value * new_factor;
+        if !base_e.is_finite() {
+            return Err(invalid_s(line));
+        }
+        self.base[3] = base_e;
+        self.extrude_factor = new_factor;
+        Ok(Command::ExtrudeFactor(percent))
+    }
+
+    fn extended(&mut self, line: &Line<'_>) -> Result<Option<Command>, Fail> {
+        let name = line.command_text().unwrap_or_default();
+        let is = |n: &str| name.eq_ignore_ascii_case(n);
+        let command = if is("SET_VELOCITY_LIMIT") {
+            Command::SetVelocityLimit(VelocityLimit {
+                velocity: ext_number(line, "VELOCITY")?,
+                accel: ext_number(line, "ACCEL")?,
+                square_corner_velocity: ext_number(line, "SQUARE_CORNER_VELOCITY")?,
+                minimum_cruise_ratio: ext_number(line, "MINIMUM_CRUISE_RATIO")?,
+                accel_to_decel: ext_number(line, "ACCEL_TO_DECEL")?,
+            })
+        } else if is("SET_KINEMATIC_POSITION") {
+            let position = [
+                ext_number(line, "X")?,
+                ext_number(line, "Y")?,
+                ext_number(line, "Z")?,
+            ];
+            for (axis, value) in position.iter().enumerate() {
+                if let Some(value) = value {
+                    self.last[axis] = *value;
+                }
+            }
+            Command::SetKinematicPosition { position }
+        } else if is("EXCLUDE_OBJECT_START") || is("EXCLUDE_OBJECT_END") {
+            let object = line
+                .ext_param("NAME")
+                .map(|p| p.value.to_owned())
+                .unwrap_or_default();
+            Command::Meta(if is("EXCLUDE_OBJECT_START") {
+                Meta::ObjectStart(object)
+            } else {
+                Meta::ObjectEnd(object)
+            })
+        } else {
+            other(line)
+        };
+        Ok(Some(command))
+    }
+
+    /// Warns about letters outside `allowed` and about repeated letters.
+    fn check_letters(&mut self, line: &Line<'_>, allowed: u32) {
+        let mut seen = 0u32;
+        for word in line.words() {
+            let letter_bit = bit(word.letter);
+            if allowed & letter_bit == 0 || seen & letter_bit != 0 {
+                self.letter_warning(word, allowed);
+            }
+            seen |= letter_bit;
+        }
+    }
+
+    /// The warning for a word outside `allowed` or repeated.
+    #[cold]
+    fn letter_warning(&mut self, word: &Word, allowed: u32) {
+        let letter = word.letter as char;
+        if allowed & bit(word.letter) == 0 {
+            let message = format!("parameter {letter} ignored by this command");
+            self.warn(Some(word.span), WarningKind::UnknownParameter, &message);
+        } else {
+            let message = format!("parameter {letter} repeated; the last one is used");
+            self.warn(Some(word.span), WarningKind::DuplicateParameter, &message);
+        }
+    }
+
+    fn warn(&mut self, span: Option<Span>, kind: WarningKind, message: &str) {
+        self.warnings.push(Warning {
+            span: span.unwrap_or_default(),
+            kind,
+            message: message.to_owned(),
+        });
+    }
+}
+
+/// `Other` with the command name upper-cased.
+fn other(line: &Line<'_>) -> Command {
+    Command::Other {
+        name: line.command_text().unwrap_or_default().to_ascii_uppercase(),
+    }
+}
+
+/// A word's value; a bare flag where a number is needed is an error.
+fn required(word: &Word) -> Result<f64, Fail> {
+    word.value.ok_or_else(|| {
+        Box::new((
+            word.span,
+            ErrorKind::InvalidParameter((word.letter as char).to_string()),
+        ))
+    })
+}
+
+fn optional_value(line: &Line<'_>, letter: u8) -> Result<Option<f64>, Fail> {
+    line.word(letter).map(required).transpose()
+}
+
+/// `S` of M220/M221: default 100, must be > 0.
+fn positive_percent(line: &Line<'_>) -> Result<f64, Fail> {
+    match line.word(b'S') {
+        None => Ok(100.0),
+        Some(word) => {
+            let value = required(word)?;
+            if value > 0.0 {
+                Ok(value)
+            } else {
+                Err(Box::new((
+                    word.span,
+                    ErrorKind::InvalidParameter("S".to_owned()),
+                )))
+            }
+        }
+    }
+}
+
+/// M220/M221 `S` out of range.
+fn invalid_s(line: &Line<'_>) -> Fail {
+    let span = line
+        .word(b'S')
+        .map_or_else(|| line.command_extent(), |w| w.span);
+    Box::new((span, ErrorKind::InvalidParameter("S".to_owned())))
+}
+
+/// `P` of an arc: a whole number of extra turns.
+fn turns(word: &Word) -> Result<u32, Fail> {
+    let value = required(word)?;
+    let invalid = || Box::new((word.span, ErrorKind::InvalidParameter("P".to_owned())));
+    if value < 0.0 || value.fract() != 0.0 || value > f64::from(u32::MAX) {
+        return Err(invalid());
+    }
+    Ok(value as u32)
+}
+
+/// A numeric extended parameter (`ACCEL=3000`); must be finite.
+fn ext_number(line: &Line<'_>, key: &str) -> Result<Option<f64>, Fail> {
+    let Some(param) = line.ext_param(key) else {
+        return Ok(None);
+    };
+    match param.value.trim().parse::<f64>() {
+        Ok(value) if value.is_finite() => Ok(Some(value)),
+        _ => Err(Box::new((
+            param.span,
+            ErrorKind::InvalidParameter(key.to_owned()),
+        ))),
+    }
+}
+
+/// Centre offset (from the start) of an R arc: short arc for R > 0, long arc for R < 0.
+fn centre_offset_from_radius(
+    start: &Position,
+    target: &Position,
+    radius: f64,
+    clockwise: bool,
+) -> Result<[f64; 2], ErrorKind> {
+    let (dx, dy) = (target[0] - start[0], target[1] - start[1]);
+    let chord = dx.hypot(dy);
+    let half = chord / 2.0;
+    let r = radius.abs();
+    if chord == 0.0 || r == 0.0 {
+        return Err(ErrorKind::ArcZeroRadius);
+    }
+    if half > r + ARC_RADIUS_TOLERANCE_MM {
+        return Err(ErrorKind::ArcRadiusTooSmall);
+    }
+    // Distance from the chord's midpoint to the centre (0 when the chord is a diameter).
+    let h = (r * r - half * half).max(0.0).sqrt();
+    // Counter-clockwise short arcs have their centre left of the chord; each flip changes side.
+    let left = if clockwise == (radius < 0.0) {
+        1.0
+    } else {
+        -1.0
+    };
+    let (ux, uy) = (dx / chord, dy / chord);
+    Ok([dx / 2.0 - left * h * uy, dy / 2.0 + left * h * ux])
+}
+
+/// Radius at start and end must agree (within 0.005 mm or 0.1 %).
+fn check_radii(start: &Position, target: &Position, centre: &[f64; 2]) -> Result<(), ErrorKind> {
+    let start_radius = (start[0] - centre[0]).hypot(start[1] - centre[1]);
+    let end_radius = (target[0] - centre[0]).hypot(target[1] - centre[1]);
+    let diff = (start_radius - end_radius).abs();
+    let relative = diff / start_radius.max(end_radius);
+    if diff > ARC_RADIUS_TOLERANCE_MM && relative > ARC_RADIUS_TOLERANCE_REL {
+        return Err(ErrorKind::ArcInconsistent {
+            start_radius,
+            end_radius,
+        });
+    }
+    Ok(())
+}
+
+/// Reader + interpreter: the stream of commands of one input.
+#[derive(Debug)]
+pub struct Commands<R> {
+    reader: Reader<R>,
+    interpreter: Interpreter,
+    source: Arc<str>,
+    finished: bool,
+}
+
+impl<R: BufRead> Commands<R> {
+    pub fn new(reader: Reader<R>, options: InterpreterOptions) -> Self {
+        let source = Arc::clone(reader.source());
+        Commands {
+            reader,
+            interpreter: Interpreter::new(options),
+            source,
+            finished: false,
+        }
+    }
+
+    /// Shorthand: read `input` named `source` with default options.
+    pub fn from_reader(input: R, source: impl Into<Arc<str>>) -> Self {
+        Self::new(Reader::new(input, source), InterpreterOptions::default())
+    }
+
+    /// The next command; `None` at the end. After an error, the next call continues with the next line.
+    pub fn next_command(&mut self) -> Option<Result<Spanned<Command>, GcodeError>> {
+        loop {
+            if let Some(command) = self.interpreter.pop_command() {
+                return Some(Ok(command));
+            }
+            if self.finished {
+                return None;
+            }
+            match self.reader.next_line() {
+                None => {
+                    self.interpreter.finish();
+                    self.finished = true;
+                }
+                Some(Err(err)) => return Some(Err(err)),
+                Some(Ok(line)) => match self.interpreter.interpret(&line, &self.source) {
+                    Ok(Some(command)) => return Some(Ok(command)),
+                    Ok(None) => {}
+                    Err(err) => return Some(Err(err)),
+                },
+            }
+        }
+    }
+
+    pub fn interpreter(&self) -> &Interpreter {
+        &self.interpreter
+    }
+
+    /// For `set_position` after homing.
+    pub fn interpreter_mut(&mut self) -> &mut Interpreter {
+        &mut self.interpreter
+    }
+
+    pub fn reader(&self) -> &Reader<R> {
+        &self.reader
+    }
+
+    /// All warnings so far (reader's, then interpreter's).
+    pub fn take_warnings(&mut self) -> Vec<Warning> {
+        let mut warnings = self.reader.warnings_mut().take();
+        warnings.extend(self.interpreter.take_warnings());
+        warnings
+    }
+
+    /// Number of warnings so far, including those not stored.
+    pub fn warning_count(&self) -> u64 {
+        self.reader.warnings().total() + self.interpreter.warnings().total()
+    }
+}
+
+impl<R: BufRead> Iterator for Commands<R> {
+    type Item = Result<Spanned<Command>, GcodeError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_command()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(text: &str) -> (Vec<Command>, Interpreter) {
+        let mut commands = Commands::from_reader(text.as_bytes(), "t");
+        let mut out = Vec::new();
+        while let Some(command) = commands.next_command() {
+            out.push(command.expect("command").value);
+        }
+        (out, commands.interpreter().clone())
+    }
+
+    fn first_error(text: &str) -> GcodeError {
+        Commands::from_reader(text.as_bytes(), "t")
+            .find_map(Result::err)
+            .expect("an error")
+    }
+
+    fn moves(commands: &[Command]) -> Vec<Move> {
+        commands
+            .iter()
+            .filter_map(|c| {
+                if let Command::Move(m) = c {
+                    Some(*m)
+                } else {
+                    None
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn absolute_relative_and_g92() {
+        let (commands, state) = run("G1 X10 Y5 F600\nG91\nG1 X1 E2\nG90\nG92 X0\nG1 X3\n");
+        let m = moves(&commands);
+        assert_eq!(m[0].target, [10.0, 5.0, 0.0, 0.0]);
+        assert_eq!(m[0].feed, 10.0);
+        assert_eq!(m[1].target, [11.0, 5.0, 0.0, 2.0]);
+        assert_eq!(m[2].target, [14.0, 5.0, 0.0, 2.0]);
+        assert_eq!(state.base_position(), [11.0, 0.0, 0.0, 0.0]);
+        assert_eq!(state.gcode_position(), [3.0, 5.0, 0.0, 2.0]);
+    }
+
+    #[test]
+    fn relative_extrusion_and_bare_g92() {
+        let (commands, state) = run("M83\nG1 E1\nG1 E1.5\nG92\nG1 E0.5\n");
+        let m = moves(&commands);
+        assert_eq!(m[1].target[3], 2.5);
+        assert_eq!(m[2].target[3], 3.0);
+        assert!(commands.contains(&Command::SetPosition {
+            position: [Some(0.0); 4]
+        }));
+        assert_eq!(state.gcode_position()[3], 0.5);
+    }
+
+    #[test]
+    fn m220_scales_speed_and_m221_keeps_e_continuous() {
+        let (commands, state) = run("G1 X1 F6000\nM220 S50\nG1 X2\nM221 S200\nG1 E1\n");
+        let m = moves(&commands);
+        assert_eq!(m[0].feed, 100.0);
+        assert_eq!(m[1].feed, 50.0);
+        // E continuous at 0, then E1 at 200 % extrudes 2 mm of filament.
+        assert_eq!(m[2].target[3], 2.0);
+        assert_eq!(state.gcode_position()[3], 1.0);
+    }
+
+    #[test]
+    fn inches() {
+        let (commands, _) = run("G20\nG1 X1 F60\n");
+        assert_eq!(moves(&commands)[0].target[0], 25.4);
+        assert_eq!(moves(&commands)[0].feed, 25.4);
+    }
+
+    #[test]
+    fn arcs_from_ij_and_r() {
+        let (commands, _) = run("G1 X10 Y0\nG3 X0 Y10 I-10 J0\nG2 X10 Y0 R10\n");
+        let arcs: Vec<_> = commands
+            .iter()
+            .filter_map(|c| {
+                if let Command::Arc(a) = c {
+                    Some(*a)
+                } else {
+                    None
+                }
+            })
+            .collect();
+        assert_eq!(arcs[0].centre, [0.0, 0.0]);
+        assert!(!arcs[0].clockwise);
+        // Short clockwise arc from (0,10) to (10,0): centre at the origin.
+        assert!(
+            arcs[1].centre[0].abs() < 1e-12 && arcs[1].centre[1].abs() < 1e-12,
+            "{:?}",
+            arcs[1].centre
+        );
+        let (commands, _) = run("G1 X10 Y0\nG2 X0 Y10 R-10\n");
+        let Some(Command::Arc(long)) = commands.last() else {
+            panic!("no arc")
+        };
+        assert!(
+            long.centre[0].abs() < 1e-12 && long.centre[1].abs() < 1e-12,
+            "{:?}",
+            long.centre
+        );
+        let (commands, _) = run("G1 X10 Y0\nG3 X0 Y10 R-10\n");
+        let Some(Command::Arc(long_ccw)) = commands.last() else {
+            panic!("no arc")
+        };
+        assert!(
+            (long_ccw.centre[0] - 10.0).abs() < 1e-12 && (long_ccw.centre[1] - 10.0).abs() < 1e-12
+        );
+    }
+
+    #[test]
+    fn arc_errors() {
+        assert_eq!(first_error("G2 X1 Y1").kind, ErrorKind::ArcMissingCentre);
+        assert_eq!(
+            first_error("G91\nG2 X1 Y1 I1").kind,
+            ErrorKind::ArcRelativeMode
+        );
+        assert_eq!(
+            first_error("G2 X10 Y0 R2").kind,
+            ErrorKind::ArcRadiusTooSmall
+        );
+        assert!(matches!(
+            first_error("G2 X10 Y0 I1 J0").kind,
+            ErrorKind::ArcInconsistent { .. }
+        ));
+        assert_eq!(
+            first_error("G18\nG2 X1 I1").kind,
+            ErrorKind::ArcPlaneUnsupported
+        );
+    }
+
+    #[test]
+    fn overflowing_values_are_errors_not_infinities() {
+        let huge = "9".repeat(308);
+        assert_eq!(
+            first_error(&format!("G20\nG1 X{huge}")).kind,
+            ErrorKind::NumberOverflow
+        );
+        assert_eq!(
+            first_error(&format!("G20\nG2 X1 Y1 I{huge}")).kind,
+            ErrorKind::NumberOverflow
+        );
+        let err = first_error(&format!("G1 F{huge}\nM220 S{huge}"));
+        assert_eq!(err.kind, ErrorKind::InvalidParameter("S".to_owned()));
+        let err = first_error(&format!("G1 E1\nG92 E-{huge}\nM221 S{huge}"));
+        assert_eq!(err.kind, ErrorKind::InvalidParameter("S".to_owned()));
+    }
+
+    #[test]
+    fn feed_and_dwell_errors() {
+        let err = first_error("G1 X1 F0");
+        assert_eq!((err.kind, err.span.column), (ErrorKind::InvalidFeedRate, 7));
+        assert_eq!(first_error("G1 F-10").kind, ErrorKind::InvalidFeedRate);
+        assert_eq!(first_error("G4 P-1").kind, ErrorKind::NegativeDwell);
+        let (commands, _) = run("G4 P250\nG4 S2\n");
+        assert_eq!(
+            commands,
+            vec![
+                Command::Dwell { seconds: 0.25 },
+                Command::Dwell { seconds: 2.0 }
+            ]
+        );
+    }
+
+    #[test]
+    fn klipper_extended_commands() {
+        let (commands, state) = run(
+            "SET_VELOCITY_LIMIT ACCEL=3000 SQUARE_CORNER_VELOCITY=5\nSET_KINEMATIC_POSITION X=300 Y=0\nset_fan_speed FAN=a SPEED=1\n",
+        );
+        assert_eq!(
+            commands[0],
+            Command::SetVelocityLimit(VelocityLimit {
+                accel: Some(3000.0),
+                square_corner_velocity: Some(5.0),
+                ..VelocityLimit::default()
+            })
+        );
+        assert_eq!(
+            commands[1],
+            Command::SetKinematicPosition {
+                position: [Some(300.0), Some(0.0), None]
+            }
+        );
+        assert_eq!(state.last_position(), [300.0, 0.0, 0.0, 0.0]);
+        assert_eq!(
+            commands[2],
+            Command::Other {
+                name: "SET_FAN_SPEED".to_owned()
+            }
+        );
+    }
+
+    #[test]
+    fn layer_metadata() {
+        let (commands, _) = run(
+            ";LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\nG1 X1\n; CHANGE_LAYER\nG1 X2\n;TYPE:Perimeter\n",
+        );
+        assert_eq!(
+            commands[0],
+            Command::Meta(Meta::LayerChange {
+                index: None,
+                z: Some(0.2)
+            })
+        );
+        assert_eq!(
+            commands[2],
+            Command::Meta(Meta::LayerChange {
+                index: None,
+                z: None
+            })
+        );
+        assert_eq!(
+            commands[4],
+            Command::Meta(Meta::Feature("Perimeter".to_owned()))
+        );
+    }
+
+    #[test]
+    fn unknown_parameters_warn() {
+        let mut commands = Commands::from_reader(&b"G1 X1 Q2 X3\n"[..], "t");
+        let all: Vec<_> = commands.by_ref().collect();
+        assert_eq!(all.len(), 1);
+        let kinds: Vec<_> = commands
+            .take_warnings()
+            .into_iter()
+            .map(|w| w.kind)
+            .collect();
+        assert_eq!(
+            kinds,
+            vec![
+                WarningKind::UnknownParameter,
+                WarningKind::DuplicateParameter
+            ]
+        );
+    }
+}

@@ -1,0 +1,815 @@
+//! Zero-copy lexer for one line of G-code: `N` line number, command word, parameter words (values parsed
+//! exactly), raw-text parameters (`M117 Hello`), Klipper extended commands (`SET_VELOCITY_LIMIT ACCEL=3000`),
+//! `;` and `( )` comments and `*` checksums. Tokens are stored as byte ranges in reusable vectors, so a
+//! line costs no allocation once the vectors have grown.
+//!
+//! Grammar decisions (documented because G-code dialects differ):
+//! - Letters are case-insensitive (`x10` is `X10`); words may be packed (`X1Y2E.5`).
+//! - A letter directly followed by a space, end of line, `;`, `(` or `*` is a flag word (`G28 X Y`).
+//! - Exponents are not G-code: a lower-case `e` right after a number's digits (`X1e5`) is an error; an
+//!   upper-case `E` there starts the next word (`X1E5` = `X1 E5`, as firmware reads packed words).
+//! - `( )` comments are recognised in classic lines, not in extended commands (Klipper has none).
+//! - `*` starts a checksum in classic lines; in extended commands only when the line has an `N` number.
+//! - Raw-text commands (everything after the command word up to `;` is one text): M23 M28 M30 M32 M33
+//!   M115 M117 M118 M486 M550 M862 (Prusa's checks with quoted strings and versions).
+
+use std::ops::Range;
+
+use crate::command::Span;
+use crate::error::ErrorKind;
+use crate::number::{NumberError, parse_number};
+
+/// A classic parameter word (`X94.838`, or the flag `X` in `G28 X`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Word {
+    /// Upper-case ASCII letter.
+    pub letter: u8,
+    /// `None` for a flag word without a value.
+    pub value: Option<f64>,
+    pub span: Span,
+}
+
+/// The command word of a line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommandWord {
+    /// `G1`, `M862.6`, `T0`: upper-case letter, number before and after the `.`.
+    Code {
+        letter: u8,
+        major: u32,
+        minor: Option<u32>,
+    },
+    /// A Klipper extended command (`SET_VELOCITY_LIMIT`); the name is [`Line::command_text`].
+    Extended,
+}
+
+/// `KEY=VALUE` of an extended command, borrowed from the line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ExtParam<'a> {
+    /// As written (compare with `eq_ignore_ascii_case`).
+    pub key: &'a str,
+    /// Without surrounding quotes.
+    pub value: &'a str,
+    /// The value was written in `"…"`.
+    pub quoted: bool,
+    pub span: Span,
+}
+
+/// A comment, borrowed from the line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Comment<'a> {
+    /// Text after `;`, or between `(` and `)`, as written.
+    pub text: &'a str,
+    /// `( )` rather than `;`.
+    pub parenthesised: bool,
+    pub span: Span,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct ExtRaw {
+    key: (u32, u32),
+    value: (u32, u32),
+    quoted: bool,
+    span_start: u32,
+    span_end: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct CommentRaw {
+    text: (u32, u32),
+    parenthesised: bool,
+    span_start: u32,
+    span_end: u32,
+}
+
+/// Reusable storage for the tokens of one line.
+#[derive(Debug, Default, Clone)]
+pub struct LineTokens {
+    line: u64,
+    line_number: Option<(u64, Span)>,
+    checksum: Option<(u8, Span)>,
+    command: Option<(CommandWord, Range<usize>)>,
+    /// End of the last parameter (for the command's span).
+    params_end: usize,
+    words: Vec<Word>,
+    ext: Vec<ExtRaw>,
+    raw_text: Option<Range<usize>>,
+    comments: Vec<CommentRaw>,
+}
+
+impl LineTokens {
+    fn clear(&mut self, line: u64) {
+        self.line = line;
+        self.line_number = None;
+        self.checksum = None;
+        self.command = None;
+        self.params_end = 0;
+        self.words.clear();
+        self.ext.clear();
+        self.raw_text = None;
+        self.comments.clear();
+    }
+}
+
+/// One lexed line: the text and its tokens.
+#[derive(Debug, Clone, Copy)]
+pub struct Line<'a> {
+    text: &'a str,
+    tokens: &'a LineTokens,
+}
+
+impl<'a> Line<'a> {
+    pub(crate) fn new(text: &'a str, tokens: &'a LineTokens) -> Self {
+        Line { text, tokens }
+    }
+
+    /// 1-based line number in the input.
+    pub fn number(&self) -> u64 {
+        self.tokens.line
+    }
+
+    /// The whole line without its terminator.
+    pub fn text(&self) -> &'a str {
+        self.text
+    }
+
+    /// The `N` line number word, if any.
+    pub fn line_number(&self) -> Option<(u64, Span)> {
+        self.tokens.line_number
+    }
+
+    /// The verified `*` checksum, if any.
+    pub fn checksum(&self) -> Option<(u8, Span)> {
+        self.tokens.checksum
+    }
+
+    /// The command word, or `None` for blank and comment-only lines.
+    pub fn command(&self) -> Option<CommandWord> {
+        self.tokens.command.as_ref().map(|(word, _)| *word)
+    }
+
+    /// The command word as written (`G1`, `g1`, `M862.6`, `set_velocity_limit`).
+    pub fn command_text(&self) -> Option<&'a str> {
+        self.tokens
+            .command
+            .as_ref()
+            .map(|(_, range)| &self.text[range.clone()])
+    }
+
+    /// Span of the command word.
+    pub fn command_span(&self) -> Option<Span> {
+        self.tokens
+            .command
+            .as_ref()
+            .map(|(_, range)| self.span(range.start, range.end))
+    }
+
+    /// Span from the command word to the end of the last parameter (the whole line when none).
+    pub fn command_extent(&self) -> Span {
+        let Some((_, range)) = &self.tokens.command else {
+            return self.span(0, self.text.len());
+        };
+        self.span(range.start, range.end.max(self.tokens.params_end))
+    }
+
+    /// Classic parameter words in order.
+    pub fn words(&self) -> &'a [Word] {
+        &self.tokens.words
+    }
+
+    /// The last word with this (upper-case) letter.
+    pub fn word(&self, letter: u8) -> Option<&'a Word> {
+        self.tokens.words.iter().rev().find(|w| w.letter == letter)
+    }
+
+    /// Parameters of an extended command in order.
+    pub fn ext_params(&self) -> impl Iterator<Item = ExtParam<'a>> + 'a {
+        let text = self.text;
+        let line = self.tokens.line;
+        self.tokens.ext.iter().map(move |raw| ExtParam {
+            key: &text[raw.key.0 as usize..raw.key.1 as usize],
+            value: &text[raw.value.0 as usize..raw.value.1 as usize],
+            quoted: raw.quoted,
+            span: span_of(line, raw.span_start as usize, raw.span_end as usize),
+        })
+    }
+
+    /// The last extended parameter with this key (case-insensitive).
+    pub fn ext_param(&self, key: &str) -> Option<ExtParam<'a>> {
+        self.ext_params()
+            .filter(|p| p.key.eq_ignore_ascii_case(key))
+            .last()
+    }
+
+    /// The text parameter of a raw-text command (`M117 Hello world` → `Hello world`).
+    pub fn raw_text(&self) -> Option<&'a str> {
+        self.tokens.raw_text.as_ref().map(|r| &self.text[r.clone()])
+    }
+
+    /// Comments in order.
+    pub fn comments(&self) -> impl Iterator<Item = Comment<'a>> + 'a {
+        let text = self.text;
+        let line = self.tokens.line;
+        self.tokens.comments.iter().map(move |raw| Comment {
+            text: &text[raw.text.0 as usize..raw.text.1 as usize],
+            parenthesised: raw.parenthesised,
+            span: span_of(line, raw.span_start as usize, raw.span_end as usize),
+        })
+    }
+
+    /// True when the line has comments.
+    pub fn has_comments(&self) -> bool {
+        !self.tokens.comments.is_empty()
+    }
+
+    fn span(&self, start: usize, end: usize) -> Span {
+        span_of(self.tokens.line, start, end)
+    }
+}
+
+/// Span of the byte range `start..end` on `line`.
+pub(crate) fn span_of(line: u64, start: usize, end: usize) -> Span {
+    Span {
+        line,
+        column: to_u32(start + 1),
+        len: to_u32(end.saturating_sub(start)),
+    }
+}
+
+/// Lines are bounded by the reader's limit (far below 4 GiB); saturate rather than wrap.
+fn to_u32(value: usize) -> u32 {
+    u32::try_from(value).unwrap_or(u32::MAX)
+}
+
+/// A lexing failure: what, and where (byte range in the line).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LexError {
+    pub kind: ErrorKind,
+    pub start: usize,
+    pub end: usize,
+}
+
+impl LexError {
+    fn new(kind: ErrorKind, start: usize, end: usize) -> Self {
+        LexError { kind, start, end }
+    }
+}
+
+/// Lexes `text` (line `line`) into `tokens`.
+pub fn lex_line(text: &str, line: u64, tokens: &mut LineTokens) -> Result<(), LexError> {
+    tokens.clear(line);
+    let mut lexer = Lexer {
+        bytes: text.as_bytes(),
+        pos: 0,
+        tokens,
+    };
+    lexer.run()
+}
+
+struct Lexer<'b, 't> {
+    bytes: &'b [u8],
+    pos: usize,
+    tokens: &'t mut LineTokens,
+}
+
+#[inline]
+fn is_blank(b: u8) -> bool {
+    b == b' ' || b == b'\t'
+}
+
+/// Bytes that may end a classic word.
+#[inline]
+fn ends_word(b: Option<u8>) -> bool {
+    match b {
+        None => true,
+        Some(b) => is_blank(b) || b == b';' || b == b'(' || b == b'*',
+    }
+}
+
+/// Raw-text M commands.
+fn takes_raw_text(letter: u8, major: u32) -> bool {
+    letter == b'M'
+        && matches!(
+            major,
+            23 | 28 | 30 | 32 | 33 | 115 | 117 | 118 | 486 | 550 | 862
+        )
+}
+
+impl Lexer<'_, '_> {
+    fn peek(&self) -> Option<u8> {
+        self.bytes.get(self.pos).copied()
+    }
+
+    fn peek_at(&self, offset: usize) -> Option<u8> {
+        self.bytes.get(self.pos + offset).copied()
+    }
+
+    fn skip_blanks(&mut self) {
+        while self.peek().is_some_and(is_blank) {
+            self.pos += 1;
+        }
+    }
+
+    fn run(&mut self) -> Result<(), LexError> {
+        self.skip_blanks();
+        self.line_number()?;
+        loop {
+            self.skip_blanks();
+            match self.peek() {
+                None => return Ok(()),
+                Some(b';') => return self.semicolon_comment(),
+                Some(b'(') => self.paren_comment()?,
+                Some(b'*') => return self.checksum(),
+                Some(b) if b.is_ascii_alphabetic() || b == b'_' => return self.command(),
+                Some(_) => return Err(self.unexpected_char()),
+            }
+        }
+    }
+
+    fn unexpected_char(&self) -> LexError {
+        let rest = &self.bytes[self.pos..];
+        let text = std::str::from_utf8(rest).unwrap_or("");
+        let c = text.chars().next().unwrap_or('\u{fffd}');
+        LexError::new(
+            ErrorKind::UnexpectedCharacter(c),
+            self.pos,
+            self.pos + c.len_utf8().max(1),
+        )
+    }
+
+    /// `N123` at the start of the line.
+    fn line_number(&mut self) -> Result<(), LexError> {
+        let is_n = matches!(self.peek(), Some(b'N' | b'n'));
+        if !is_n || !self.peek_at(1).is_some_and(|b| b.is_ascii_digit()) {
+            return Ok(());
+        }
+        let start = self.pos;
+        self.pos += 1;
+        let mut value: u64 = 0;
+        while let Some(b) = self.peek().filter(u8::is_ascii_digit) {
+            value = value
+                .checked_mul(10)
+                .and_then(|v| v.checked_add(u64::from(b - b'0')))
+                .ok_or_else(|| LexError::new(ErrorKind::NumberOverflow, start, self.pos + 1))?;
+            self.pos += 1;
+        }
+        if !ends_word(self.peek()) && !self.peek().is_some_and(|b| b.is_ascii_alphabetic()) {
+            return Err(LexError::new(ErrorKind::InvalidNumber, start, self.pos + 1));
+        }
+        self.tokens.line_number = Some((value, span_of(self.tokens.line, start, self.pos)));
+        Ok(())
+    }
+
+    fn command(&mut self) -> Result<(), LexError> {
+        let start = self.pos;
+        let first = self.bytes[start];
+        let second = self.peek_at(1);
+        if first != b'_' && second.is_some_and(|b| b.is_ascii_digit()) {
+            let letter = first.to_ascii_uppercase();
+            self.pos += 1;
+            let major = self.code_number(start)?;
+            let minor = if self.peek() == Some(b'.') {
+                self.pos += 1;
+                Some(self.code_number(start)?)
+            } else {
+                None
+            };
+            self.tokens.command = Some((
+                CommandWord::Code {
+                    letter,
+                    major,
+                    minor,
+                },
+                start..self.pos,
+            ));
+            if takes_raw_text(letter, major) {
+                return self.raw_text();
+            }
+            return self.classic_params();
+        }
+        let is_name_byte = |b: &u8| b.is_ascii_alphanumeric() || *b == b'_';
+        if first == b'_' || second.is_some_and(|b| b.is_ascii_alphabetic() || b == b'_') {
+            while self.peek().as_ref().is_some_and(is_name_byte) {
+                self.pos += 1;
+            }
+            if !matches!(self.peek(), None | Some(b' ' | b'\t' | b';')) {
+                return Err(self.unexpected_char());
+            }
+            self.tokens.command = Some((CommandWord::Extended, start..self.pos));
+            return self.extended_params();
+        }
+        Err(LexError::new(
+            ErrorKind::InvalidNumber,
+            start,
+            self.word_end(start + 1),
+        ))
+    }
+
+    /// Digits of a command number (`1` in `G1`).
+    fn code_number(&mut self, word_start: usize) -> Result<u32, LexError> {
+        let digits_start = self.pos;
+        let mut value: u32 = 0;
+        while let Some(b) = self.peek().filter(u8::is_ascii_digit) {
+            value = value
+                .checked_mul(10)
+                .and_then(|v| v.checked_add(u32::from(b - b'0')))
+                .ok_or_else(|| {
+                    LexError::new(
+                        ErrorKind::NumberOverflow,
+                        word_start,
+                        self.word_end(self.pos),
+                    )
+                })?;
+            self.pos += 1;
+        }
+        if self.pos == digits_start {
+            return Err(LexError::new(
+                ErrorKind::InvalidNumber,
+                word_start,
+                self.word_end(self.pos),
+            ));
+        }
+        Ok(value)
+    }
+
+    /// End of a bad word, for the error span: up to the next blank or comment.
+    fn word_end(&self, from: usize) -> usize {
+        let mut end = from.min(self.bytes.len());
+        while end < self.bytes.len() && !ends_word(Some(self.bytes[end])) {
+            end += 1;
+        }
+        end
+    }
+
+    fn classic_params(&mut self) -> Result<(), LexError> {
+        loop {
+            self.skip_blanks();
+            match self.peek() {
+                None => return Ok(()),
+                Some(b';') => return self.semicolon_comment(),
+                Some(b'(') => self.paren_comment()?,
+                Some(b'*') => return self.checksum(),
+                Some(b) if b.is_ascii_alphabetic() => self.word(b.to_ascii_uppercase())?,
+                Some(_) => return Err(self.unexpected_char()),
+            }
+        }
+    }
+
+    /// One parameter word starting at a letter.
+    fn word(&mut self, letter: u8) -> Result<(), LexError> {
+        let start = self.pos;
+        self.pos += 1;
+        let value = match self.peek() {
+            next if ends_word(next) => None,
+            Some(b'0'..=b'9' | b'.' | b'-' | b'+') => Some(self.word_value(start)?),
+            _ => {
+                return Err(LexError::new(
+                    ErrorKind::InvalidNumber,
+                    start,
+                    self.word_end(start + 1),
+                ));
+            }
+        };
+        let span = span_of(self.tokens.line, start, self.pos);
+        self.tokens.words.push(Word {
+            letter,
+            value,
+            span,
+        });
+        self.tokens.params_end = self.pos;
+        Ok(())
+    }
+
+    fn word_value(&mut self, word_start: usize) -> Result<f64, LexError> {
+        match parse_number(self.bytes, self.pos) {
+            Ok((value, end)) => {
+                self.pos = end;
+                match self.peek() {
+                    Some(b'e') => Err(LexError::new(
+                        ErrorKind::ExponentNotAllowed,
+                        word_start,
+                        self.word_end(end),
+                    )),
+                    Some(b) if !ends_word(Some(b)) && !b.is_ascii_alphabetic() => Err(
+                        LexError::new(ErrorKind::InvalidNumber, word_start, self.word_end(end)),
+                    ),
+                    _ => Ok(value),
+                }
+            }
+            Err(NumberError::Invalid) => Err(LexError::new(
+                ErrorKind::InvalidNumber,
+                word_start,
+                self.word_end(word_start + 1),
+            )),
+            Err(NumberError::Overflow) => Err(LexError::new(
+                ErrorKind::NumberOverflow,
+                word_start,
+                self.word_end(word_start + 1),
+            )),
+        }
+    }
+
+    /// Everything after the command word up to `;` (and before a trailing `*checksum`) is one text.
+    fn raw_text(&mut self) -> Result<(), LexError> {
+        self.skip_blanks();
+        let start = self.pos;
+        let semicolon =
+            memchr::memchr(b';', &self.bytes[start..]).map_or(self.bytes.len(), |i| start + i);
+        let mut end = semicolon;
+        if let Some(star) = memchr::memrchr(b'*', &self.bytes[start..end]).map(|i| start + i) {
+            let after = &self.bytes[star + 1..end];
+            let digits = after.iter().take_while(|b| b.is_ascii_digit()).count();
+            if digits > 0 && after[digits..].iter().all(|&b| is_blank(b)) {
+                end = star;
+                self.pos = star;
+                self.checksum_at(star)?;
+            }
+        }
+        while end > start && is_blank(self.bytes[end - 1]) {
+            end -= 1;
+        }
+        self.tokens.raw_text = Some(start..end);
+        self.tokens.params_end = end;
+        self.pos = semicolon;
+        if semicolon < self.bytes.len() {
+            self.semicolon_comment()?;
+        }
+        Ok(())
+    }
+
+    fn extended_params(&mut self) -> Result<(), LexError> {
+        loop {
+            self.skip_blanks();
+            match self.peek() {
+                None => return Ok(()),
+                Some(b';') => return self.semicolon_comment(),
+                Some(b'*') if self.tokens.line_number.is_some() => return self.checksum(),
+                Some(_) => self.ext_param()?,
+            }
+        }
+    }
+
+    fn ext_param(&mut self) -> Result<(), LexError> {
+        let start = self.pos;
+        while self
+            .peek()
+            .is_some_and(|b| b != b'=' && !is_blank(b) && b != b';')
+        {
+            self.pos += 1;
+        }
+        if self.peek() != Some(b'=') || self.pos == start {
+            return Err(LexError::new(
+                ErrorKind::MalformedParameter,
+                start,
+                self.pos.max(start + 1),
+            ));
+        }
+        let key = (start, self.pos);
+        self.pos += 1;
+        let (value, quoted) = if self.peek() == Some(b'"') {
+            let open = self.pos;
+            let close = memchr::memchr(b'"', &self.bytes[open + 1..])
+                .map(|i| open + 1 + i)
+                .ok_or_else(|| {
+                    LexError::new(ErrorKind::UnterminatedString, open, self.bytes.len())
+                })?;
+            self.pos = close + 1;
+            ((open + 1, close), true)
+        } else {
+            let value_start = self.pos;
+            while self.peek().is_some_and(|b| !is_blank(b) && b != b';') {
+                self.pos += 1;
+            }
+            ((value_start, self.pos), false)
+        };
+        self.tokens.ext.push(ExtRaw {
+            key: (to_u32(key.0), to_u32(key.1)),
+            value: (to_u32(value.0), to_u32(value.1)),
+            quoted,
+            span_start: to_u32(start),
+            span_end: to_u32(self.pos),
+        });
+        self.tokens.params_end = self.pos;
+        Ok(())
+    }
+
+    fn semicolon_comment(&mut self) -> Result<(), LexError> {
+        let start = self.pos;
+        let end = self.bytes.len();
+        self.tokens.comments.push(CommentRaw {
+            text: (to_u32(start + 1), to_u32(end)),
+            parenthesised: false,
+            span_start: to_u32(start),
+            span_end: to_u32(end),
+        });
+        self.pos = end;
+        Ok(())
+    }
+
+    fn paren_comment(&mut self) -> Result<(), LexError> {
+        let start = self.pos;
+        let close = memchr::memchr(b')', &self.bytes[start + 1..])
+            .map(|i| start + 1 + i)
+            .ok_or_else(|| LexError::new(ErrorKind::UnterminatedComment, start, start + 1))?;
+        self.tokens.comments.push(CommentRaw {
+            text: (to_u32(start + 1), to_u32(close)),
+            parenthesised: true,
+            span_start: to_u32(start),
+            span_end: to_u32(close + 1),
+        });
+        self.pos = close + 1;
+        Ok(())
+    }
+
+    /// `*nn` after the words: must be the XOR of all bytes before `*`; only blanks and comments may follow.
+    fn checksum(&mut self) -> Result<(), LexError> {
+        let star = self.pos;
+        self.checksum_at(star)?;
+        loop {
+            self.skip_blanks();
+            match self.peek() {
+                None => return Ok(()),
+                Some(b';') => return self.semicolon_comment(),
+                Some(b'(') => self.paren_comment()?,
+                Some(_) => return Err(self.unexpected_char()),
+            }
+        }
+    }
+
+    fn checksum_at(&mut self, star: usize) -> Result<(), LexError> {
+        let mut pos = star + 1;
+        let mut written: u32 = 0;
+        while let Some(b) = self.bytes.get(pos).copied().filter(u8::is_ascii_digit) {
+            written = written
+                .saturating_mul(10)
+                .saturating_add(u32::from(b - b'0'));
+            pos += 1;
+        }
+        if pos == star + 1 || !ends_word(self.bytes.get(pos).copied()) {
+            return Err(LexError::new(
+                ErrorKind::MalformedChecksum,
+                star,
+                pos.max(star + 1),
+            ));
+        }
+        let computed = self.bytes[..star].iter().fold(0u8, |acc, b| acc ^ b);
+        if written != u32::from(computed) {
+            return Err(LexError::new(
+                ErrorKind::ChecksumMismatch { written, computed },
+                star,
+                pos,
+            ));
+        }
+        self.tokens.checksum = Some((computed, span_of(self.tokens.line, star, pos)));
+        self.pos = pos;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lex(text: &str) -> LineTokens {
+        let mut tokens = LineTokens::default();
+        lex_line(text, 1, &mut tokens).expect(text);
+        tokens
+    }
+
+    fn lex_err(text: &str) -> LexError {
+        let mut tokens = LineTokens::default();
+        lex_line(text, 1, &mut tokens).expect_err(text)
+    }
+
+    fn values(text: &str) -> Vec<(char, Option<f64>)> {
+        let tokens = lex(text);
+        let line = Line::new(text, &tokens);
+        line.words()
+            .iter()
+            .map(|w| (w.letter as char, w.value))
+            .collect()
+    }
+
+    #[test]
+    fn packed_and_lower_case_words() {
+        assert_eq!(
+            values("G1X94.838Y81.705"),
+            vec![('X', Some(94.838)), ('Y', Some(81.705))]
+        );
+        assert_eq!(
+            values("g1 x10 Z.2 E-.54 F+5"),
+            vec![
+                ('X', Some(10.0)),
+                ('Z', Some(0.2)),
+                ('E', Some(-0.54)),
+                ('F', Some(5.0))
+            ]
+        );
+        assert_eq!(values("G1 X1E5"), vec![('X', Some(1.0)), ('E', Some(5.0))]);
+    }
+
+    #[test]
+    fn flag_words() {
+        assert_eq!(values("G28 X Y"), vec![('X', None), ('Y', None)]);
+        assert_eq!(values("M84 E;off"), vec![('E', None)]);
+    }
+
+    #[test]
+    fn command_words() {
+        let tokens = lex("M862.6 P\"Input shaper\"");
+        let line = Line::new("M862.6 P\"Input shaper\"", &tokens);
+        assert_eq!(
+            line.command(),
+            Some(CommandWord::Code {
+                letter: b'M',
+                major: 862,
+                minor: Some(6)
+            })
+        );
+        assert_eq!(line.raw_text(), Some("P\"Input shaper\""));
+    }
+
+    #[test]
+    fn raw_text_ends_at_semicolon() {
+        let text = "M117 Hello (world) X1.2.3 ; shown";
+        let tokens = lex(text);
+        let line = Line::new(text, &tokens);
+        assert_eq!(line.raw_text(), Some("Hello (world) X1.2.3"));
+        assert_eq!(line.comments().next().map(|c| c.text), Some(" shown"));
+    }
+
+    #[test]
+    fn extended_commands() {
+        let text = "EXCLUDE_OBJECT_DEFINE NAME=a POLYGON=[[1,2],[3,4]] MSG=\"two words\" ; c";
+        let tokens = lex(text);
+        let line = Line::new(text, &tokens);
+        assert_eq!(line.command(), Some(CommandWord::Extended));
+        assert_eq!(line.command_text(), Some("EXCLUDE_OBJECT_DEFINE"));
+        let params: Vec<_> = line
+            .ext_params()
+            .map(|p| (p.key, p.value, p.quoted))
+            .collect();
+        assert_eq!(
+            params,
+            vec![
+                ("NAME", "a", false),
+                ("POLYGON", "[[1,2],[3,4]]", false),
+                ("MSG", "two words", true)
+            ]
+        );
+        assert_eq!(line.ext_param("polygon").map(|p| p.span.column), Some(30));
+    }
+
+    #[test]
+    fn comments_are_kept() {
+        let text = "G1 (move) X1 ; TYPE:Perimeter";
+        let tokens = lex(text);
+        let line = Line::new(text, &tokens);
+        let comments: Vec<_> = line.comments().map(|c| (c.text, c.parenthesised)).collect();
+        assert_eq!(comments, vec![("move", true), (" TYPE:Perimeter", false)]);
+    }
+
+    #[test]
+    fn checksums_are_verified() {
+        let body = "N3 G1 X10";
+        let sum = body.bytes().fold(0u8, |a, b| a ^ b);
+        let good = format!("{body}*{sum}");
+        let tokens = lex(&good);
+        assert_eq!(tokens.line_number.map(|n| n.0), Some(3));
+        assert_eq!(tokens.checksum.map(|c| c.0), Some(sum));
+        let bad = format!("{body}*{}", sum ^ 1);
+        assert!(matches!(
+            lex_err(&bad).kind,
+            ErrorKind::ChecksumMismatch { .. }
+        ));
+    }
+
+    #[test]
+    fn bad_numbers_have_the_word_span() {
+        let err = lex_err("G1 X1.2.3 Y1");
+        assert_eq!(
+            (err.kind, err.start, err.end),
+            (ErrorKind::InvalidNumber, 3, 9)
+        );
+        assert_eq!(lex_err("G1 X- Y1").kind, ErrorKind::InvalidNumber);
+        assert_eq!(lex_err("G1 X.").kind, ErrorKind::InvalidNumber);
+        assert_eq!(lex_err("G1 Xabc").kind, ErrorKind::InvalidNumber);
+        assert_eq!(lex_err("G1 Xnan").kind, ErrorKind::InvalidNumber);
+        assert_eq!(lex_err("G1 X1e5").kind, ErrorKind::ExponentNotAllowed);
+        assert_eq!(lex_err("G1 X#1").kind, ErrorKind::InvalidNumber);
+    }
+
+    #[test]
+    fn command_extent_covers_parameters() {
+        let text = "  G1 X1 Y2 ; c";
+        let tokens = lex(text);
+        let line = Line::new(text, &tokens);
+        assert_eq!(
+            line.command_extent(),
+            Span {
+                line: 1,
+                column: 3,
+                len: 8
+            }
+        );
+    }
+}

@@ -1,0 +1,166 @@
+//! Slicer metadata in comments: layer changes, feature types and object markers, as each slicer writes
+//! them (PrusaSlicer/SuperSlicer/Orca `;LAYER_CHANGE` + `;Z:`, Cura `;LAYER:n` and `;TYPE:`, Bambu
+//! `; CHANGE_LAYER` + `; Z_HEIGHT:` and `; FEATURE:`, Simplify3D `; layer n, Z = z` and `; feature …`,
+//! KISSlicer `; BEGIN_LAYER_OBJECT z=…` and `; 'Perimeter', …`, PrusaSlicer `; printing object …`).
+//! Only comments whose first letter can start one of these prefixes are examined further.
+
+use crate::command::Meta;
+
+/// What a comment says.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CommentMeta {
+    /// Complete metadata.
+    Meta(Meta),
+    /// A layer starts; its Z follows in a later comment (`;Z:` / `; Z_HEIGHT:`).
+    LayerStart,
+    /// The Z of the layer just started.
+    LayerZ(f64),
+}
+
+/// Recognises metadata in a `;` comment's text (the text after `;`).
+pub fn comment_meta(text: &str) -> Option<CommentMeta> {
+    let text = text.trim_start_matches([' ', '\t']);
+    match text.as_bytes().first()? {
+        b'L' => layer_upper(text),
+        b'Z' => layer_z(text),
+        b'T' => text.strip_prefix("TYPE:").map(feature),
+        b'C' => (text.trim_end() == "CHANGE_LAYER").then_some(CommentMeta::LayerStart),
+        b'F' => text.strip_prefix("FEATURE:").map(feature),
+        b'f' => text.strip_prefix("feature ").map(feature),
+        b'l' => simplify3d_layer(text),
+        b'B' => kisslicer_layer(text),
+        b'\'' => kisslicer_feature(text),
+        b'p' => {
+            object_name(text, "printing object ").map(|n| CommentMeta::Meta(Meta::ObjectStart(n)))
+        }
+        b's' => object_name(text, "stop printing object ")
+            .map(|n| CommentMeta::Meta(Meta::ObjectEnd(n))),
+        _ => None,
+    }
+}
+
+fn feature(name: &str) -> CommentMeta {
+    CommentMeta::Meta(Meta::Feature(name.trim().to_owned()))
+}
+
+/// `LAYER_CHANGE` (Prusa) or `LAYER:n` (Cura).
+fn layer_upper(text: &str) -> Option<CommentMeta> {
+    if text.trim_end() == "LAYER_CHANGE" {
+        return Some(CommentMeta::LayerStart);
+    }
+    let index = text.strip_prefix("LAYER:")?.trim().parse::<i64>().ok()?;
+    Some(CommentMeta::Meta(Meta::LayerChange {
+        index: Some(index),
+        z: None,
+    }))
+}
+
+/// `Z:0.2` (Prusa) or `Z_HEIGHT: 0.2` (Bambu).
+fn layer_z(text: &str) -> Option<CommentMeta> {
+    let value = text
+        .strip_prefix("Z:")
+        .or_else(|| text.strip_prefix("Z_HEIGHT:"))?;
+    finite(value).map(CommentMeta::LayerZ)
+}
+
+/// `layer 3, Z = 0.720` (Simplify3D).
+fn simplify3d_layer(text: &str) -> Option<CommentMeta> {
+    let (index, z) = text.strip_prefix("layer ")?.split_once(", Z = ")?;
+    let index = index.trim().parse::<i64>().ok()?;
+    let z = finite(z)?;
+    Some(CommentMeta::Meta(Meta::LayerChange {
+        index: Some(index),
+        z: Some(z),
+    }))
+}
+
+/// `BEGIN_LAYER_OBJECT z=0.50` (KISSlicer).
+fn kisslicer_layer(text: &str) -> Option<CommentMeta> {
+    let z = finite(text.strip_prefix("BEGIN_LAYER_OBJECT z=")?)?;
+    Some(CommentMeta::Meta(Meta::LayerChange {
+        index: None,
+        z: Some(z),
+    }))
+}
+
+/// `'Perimeter', 0.2 [feed mm/s], 11.5 [head mm/s]` (KISSlicer); a bare `'name'` is not a feature.
+fn kisslicer_feature(text: &str) -> Option<CommentMeta> {
+    let (name, rest) = text[1..].split_once('\'')?;
+    rest.starts_with(',').then(|| feature(name))
+}
+
+fn object_name(text: &str, prefix: &str) -> Option<String> {
+    text.strip_prefix(prefix).map(|name| name.trim().to_owned())
+}
+
+/// A finite decimal (comment values are not G-code words, so std's parser is fine here).
+fn finite(text: &str) -> Option<f64> {
+    text.trim().parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn meta(text: &str) -> Option<CommentMeta> {
+        comment_meta(text)
+    }
+
+    #[test]
+    fn slicer_layer_markers() {
+        assert_eq!(meta("LAYER_CHANGE"), Some(CommentMeta::LayerStart));
+        assert_eq!(meta("Z:0.2"), Some(CommentMeta::LayerZ(0.2)));
+        assert_eq!(meta(" CHANGE_LAYER"), Some(CommentMeta::LayerStart));
+        assert_eq!(meta(" Z_HEIGHT: 0.4"), Some(CommentMeta::LayerZ(0.4)));
+        assert_eq!(
+            meta("LAYER:12"),
+            Some(CommentMeta::Meta(Meta::LayerChange {
+                index: Some(12),
+                z: None
+            }))
+        );
+        assert_eq!(
+            meta(" layer 2, Z = 0.720"),
+            Some(CommentMeta::Meta(Meta::LayerChange {
+                index: Some(2),
+                z: Some(0.72)
+            }))
+        );
+        assert_eq!(
+            meta(" BEGIN_LAYER_OBJECT z=0.50"),
+            Some(CommentMeta::Meta(Meta::LayerChange {
+                index: None,
+                z: Some(0.5)
+            }))
+        );
+        assert_eq!(meta("LAYER_COUNT:10"), None);
+        assert_eq!(meta(" layer end"), None);
+        assert_eq!(meta(" END_LAYER_OBJECT z=0.50"), None);
+    }
+
+    #[test]
+    fn features_and_objects() {
+        let feature = |s: &str| Some(CommentMeta::Meta(Meta::Feature(s.to_owned())));
+        assert_eq!(meta("TYPE:WALL-OUTER"), feature("WALL-OUTER"));
+        assert_eq!(meta(" FEATURE: Outer wall"), feature("Outer wall"));
+        assert_eq!(meta(" feature inner perimeter"), feature("inner perimeter"));
+        assert_eq!(
+            meta(" 'Loop', 0.5 [feed mm/s], 29.8 [head mm/s]"),
+            feature("Loop")
+        );
+        assert_eq!(meta(" 'cube.gcode'"), None);
+        assert_eq!(
+            meta(" printing object Vase.stl id:0 copy 0"),
+            Some(CommentMeta::Meta(Meta::ObjectStart(
+                "Vase.stl id:0 copy 0".to_owned()
+            )))
+        );
+        assert_eq!(
+            meta(" stop printing object Vase.stl id:0 copy 0"),
+            Some(CommentMeta::Meta(Meta::ObjectEnd(
+                "Vase.stl id:0 copy 0".to_owned()
+            )))
+        );
+        assert_eq!(meta(" printing_by_object_gcode = "), None);
+    }
+}

@@ -1,0 +1,169 @@
+//! Exact, fast parsing of G-code numbers (`94.838`, `-.54`, `+5`, `10.`): the value is always the one
+//! `str::parse::<f64>` gives for the same text.
+//!
+//! Fast path (Clinger): an integer mantissa of at most 2^53 and at most 22 fraction digits is turned into
+//! the value by one correctly rounded division by an exact power of ten. Anything else goes to std's
+//! parser. Exponents, `nan` and `inf` are not G-code and never reach either path.
+
+/// Why a number could not be read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NumberError {
+    /// No digits (`-`, `.`), or a second `.` (`1.2.3`).
+    Invalid,
+    /// The value does not fit an f64 (a 400-digit integer).
+    Overflow,
+}
+
+/// Powers of ten that are exact in f64.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// Largest mantissa for which the fast path is exact.
+const MAX_EXACT_MANTISSA: u64 = 1 << 53;
+
+#[inline]
+/// Parses the number starting at `bytes[start]`; returns the value and the index just past it.
+/// Stops at the first byte that cannot continue the number; the caller checks what follows.
+pub fn parse_number(bytes: &[u8], start: usize) -> Result<(f64, usize), NumberError> {
+    let mut i = start;
+    let negative = match bytes.get(i) {
+        Some(b'-') => {
+            i += 1;
+            true
+        }
+        Some(b'+') => {
+            i += 1;
+            false
+        }
+        _ => false,
+    };
+    let unsigned_start = i;
+    let (mut mantissa, int_end) = digits(bytes, i, 0);
+    let int_digits = int_end - i;
+    i = int_end;
+    let mut frac_digits = 0;
+    if bytes.get(i) == Some(&b'.') {
+        let (with_fraction, frac_end) = digits(bytes, i + 1, mantissa);
+        mantissa = with_fraction;
+        frac_digits = frac_end - (i + 1);
+        i = frac_end;
+    }
+    if int_digits + frac_digits == 0 || bytes.get(i) == Some(&b'.') {
+        return Err(NumberError::Invalid);
+    }
+    // At most 19 digits cannot overflow u64 (the wrapping arithmetic below is then exact).
+    let fast = int_digits + frac_digits <= 19
+        && mantissa <= MAX_EXACT_MANTISSA
+        && frac_digits < POW10.len();
+    let magnitude = if fast {
+        mantissa as f64 / POW10[frac_digits]
+    } else {
+        slow_parse(&bytes[unsigned_start..i])?
+    };
+    let value = if negative { -magnitude } else { magnitude };
+    Ok((value, i))
+}
+
+/// Reads decimal digits from `bytes[start..]`, continuing `mantissa` (wrapping: callers check the
+/// digit count); returns the mantissa and the index after the last digit.
+#[inline]
+fn digits(bytes: &[u8], start: usize, mut mantissa: u64) -> (u64, usize) {
+    let mut i = start;
+    while let Some(&b) = bytes.get(i) {
+        let digit = b.wrapping_sub(b'0');
+        if digit > 9 {
+            break;
+        }
+        mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(digit));
+        i += 1;
+    }
+    (mantissa, i)
+}
+
+/// std's correctly rounded parser for the rare long numbers; the text holds only digits and `.`.
+fn slow_parse(text: &[u8]) -> Result<f64, NumberError> {
+    let text = std::str::from_utf8(text).map_err(|_| NumberError::Invalid)?;
+    let value: f64 = text.parse().map_err(|_| NumberError::Invalid)?;
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(NumberError::Overflow)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_all(text: &str) -> Result<f64, NumberError> {
+        let (value, end) = parse_number(text.as_bytes(), 0)?;
+        assert_eq!(end, text.len(), "{text}");
+        Ok(value)
+    }
+
+    #[test]
+    fn equals_std_on_typical_values() {
+        for text in [
+            "94.838",
+            "-.54",
+            "+5",
+            "10.",
+            "0",
+            "-0",
+            "0.2",
+            "0.1",
+            "0.3",
+            "123456789.123456789",
+            "0.00000000000000000000001",
+            "9007199254740993",
+            "17976931348623157",
+            "4.35",
+            "-82.491",
+            "000000000000000000000001.5",
+            "1.0000000000000000000000000001",
+        ] {
+            let ours = parse_all(text).expect(text);
+            let std: f64 = text.parse().expect(text);
+            assert_eq!(ours.to_bits(), std.to_bits(), "{text}");
+        }
+    }
+
+    #[test]
+    fn rejects_malformed_numbers() {
+        assert_eq!(parse_number(b"1.2.3", 0), Err(NumberError::Invalid));
+        assert_eq!(parse_number(b"-", 0), Err(NumberError::Invalid));
+        assert_eq!(parse_number(b".", 0), Err(NumberError::Invalid));
+        assert_eq!(parse_number(b"-.", 0), Err(NumberError::Invalid));
+        assert_eq!(parse_number(b"abc", 0), Err(NumberError::Invalid));
+    }
+
+    #[test]
+    fn huge_integers_overflow() {
+        let text = "9".repeat(400);
+        assert_eq!(parse_number(text.as_bytes(), 0), Err(NumberError::Overflow));
+    }
+
+    #[test]
+    fn stops_at_the_next_word() {
+        assert_eq!(parse_number(b"94.838Y81.7", 0), Ok((94.838, 6)));
+        assert_eq!(parse_number(b"X-1 ", 1), Ok((-1.0, 3)));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn matches_std_for_any_decimal(int in "[0-9]{0,25}", frac in proptest::option::of("[0-9]{0,30}"), sign in "[-+]?") {
+            let text = match &frac { Some(f) => format!("{sign}{int}.{f}"), None => format!("{sign}{int}") };
+            let std: Result<f64, _> = text.parse::<f64>();
+            match (parse_number(text.as_bytes(), 0), std) {
+                (Ok((ours, end)), Ok(std)) => {
+                    proptest::prop_assert_eq!(end, text.len());
+                    proptest::prop_assert_eq!(ours.to_bits(), std.to_bits());
+                }
+                (Err(_), Err(_)) => {}
+                (ours, std) => proptest::prop_assert!(false, "{text}: ours {ours:?}, std {std:?}"),
+            }
+        }
+    }
+}

@@ -1,0 +1,376 @@
+//! Streaming line reader: pulls lines from any `BufRead` into one reused buffer (`\n`, `\r\n` and `\r`
+//! line ends), checks UTF-8 and lexes each line. Memory is bounded by the longest line, never by the
+//! file size; lines longer than `ReaderOptions::max_line_len` are an error (and are skipped whole).
+//!
+//! Non-UTF-8 bytes: an error with line and column, except inside a `;` comment, where they are replaced
+//! by U+FFFD and reported as a [`WarningKind::LossyComment`] warning (old slicers write Latin-1 names).
+
+use std::io::{self, BufRead};
+use std::sync::Arc;
+
+use crate::command::Span;
+use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
+use crate::lexer::{Line, LineTokens, lex_line, span_of};
+
+/// Reader settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReaderOptions {
+    /// Longest accepted line in bytes (default 32 MiB: base64 thumbnails fit, memory stays bounded).
+    pub max_line_len: usize,
+}
+
+impl Default for ReaderOptions {
+    fn default() -> Self {
+        ReaderOptions {
+            max_line_len: 32 << 20,
+        }
+    }
+}
+
+/// Reads and lexes lines one at a time (a lending iterator: each [`Line`] borrows the reader).
+#[derive(Debug)]
+pub struct Reader<R> {
+    input: R,
+    source: Arc<str>,
+    options: ReaderOptions,
+    buf: Vec<u8>,
+    lossy: String,
+    tokens: LineTokens,
+    line: u64,
+    /// The previous line ended in `\r`: a `\n` right after it belongs to the same line end.
+    skip_lf: bool,
+    bytes_consumed: u64,
+    /// Bytes of the line handed out last, consumed at the next call.
+    deferred_consume: usize,
+    warnings: Warnings,
+    failed_io: bool,
+}
+
+/// Where the next line is.
+enum Located {
+    Eof,
+    /// Entirely inside the input's buffer, at `start..end`; `consume` bytes include its line end.
+    InBuffer {
+        start: usize,
+        end: usize,
+        consume: usize,
+    },
+    /// Crosses the buffer's end (or is too long): read it by copying.
+    Split,
+}
+
+/// How a raw line read ended.
+enum RawLine {
+    Eof,
+    Line { too_long: bool },
+}
+
+impl<R: BufRead> Reader<R> {
+    /// A reader over `input`; `source` names it in errors (a file name, `<stdin>`).
+    pub fn new(input: R, source: impl Into<Arc<str>>) -> Self {
+        Self::with_options(input, source, ReaderOptions::default())
+    }
+
+    pub fn with_options(input: R, source: impl Into<Arc<str>>, options: ReaderOptions) -> Self {
+        Reader {
+            input,
+            source: source.into(),
+            options,
+            buf: Vec::with_capacity(256),
+            lossy: String::new(),
+            tokens: LineTokens::default(),
+            line: 0,
+            skip_lf: false,
+            bytes_consumed: 0,
+            deferred_consume: 0,
+            warnings: Warnings::default(),
+            failed_io: false,
+        }
+    }
+
+    /// The name used in errors.
+    pub fn source(&self) -> &Arc<str> {
+        &self.source
+    }
+
+    /// Number of the last line read (1-based; 0 before the first).
+    pub fn line_number(&self) -> u64 {
+        self.line
+    }
+
+    /// Input bytes consumed so far (for progress bars).
+    pub fn bytes_consumed(&self) -> u64 {
+        self.bytes_consumed
+    }
+
+    /// Warnings so far (lossy comments).
+    pub fn warnings(&self) -> &Warnings {
+        &self.warnings
+    }
+
+    pub fn warnings_mut(&mut self) -> &mut Warnings {
+        &mut self.warnings
+    }
+
+    /// The next lexed line; `None` at the end of input. After an error the next call continues with
+    /// the following line (an I/O error ends the input).
+    #[allow(clippy::should_implement_trait)]
+    pub fn next_line(&mut self) -> Option<Result<Line<'_>, GcodeError>> {
+        if self.failed_io {
+            return None;
+        }
+        if self.deferred_consume > 0 {
+            self.input
+                .consume(std::mem::take(&mut self.deferred_consume));
+        }
+        let located = match self.locate_line() {
+            Ok(located) => located,
+            Err(err) => return Some(Err(self.io_error(&err))),
+        };
+        match located {
+            Located::Eof => None,
+            Located::InBuffer {
+                start,
+                end,
+                consume,
+            } => {
+                self.line += 1;
+                self.bytes_consumed += consume as u64;
+                self.deferred_consume = consume;
+                // The buffer is not empty, so `fill_buf` returns the same bytes without reading
+                // (the `BufRead` contract): the line is lexed in place, without a copy.
+                let available = match self.input.fill_buf() {
+                    Ok(available) if available.len() >= end => available,
+                    other => {
+                        self.failed_io = true;
+                        let err = other
+                            .err()
+                            .unwrap_or_else(|| io::Error::other("input buffer changed"));
+                        return Some(Err(io_error(&self.source, self.line, &err)));
+                    }
+                };
+                let bytes = &available[start..end];
+                let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
+                Some(lex_bytes(bytes, self.line, out, &self.source))
+            }
+            Located::Split => {
+                let too_long = match self.read_raw_line() {
+                    Ok(RawLine::Eof) => return None,
+                    Ok(RawLine::Line { too_long }) => too_long,
+                    Err(err) => return Some(Err(self.io_error(&err))),
+                };
+                self.line += 1;
+                if too_long {
+                    let limit = self.options.max_line_len;
+                    let span = span_of(self.line, limit, limit.saturating_add(1));
+                    return Some(Err(self.error(span, ErrorKind::LineTooLong { limit })));
+                }
+                let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
+                Some(lex_bytes(&self.buf, self.line, out, &self.source))
+            }
+        }
+    }
+
+    /// Finds the next line in the current input buffer without consuming it.
+    fn locate_line(&mut self) -> io::Result<Located> {
+        let available = loop {
+            match self.input.fill_buf() {
+                Ok(bytes) => break bytes,
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
+                Err(err) => return Err(err),
+            }
+        };
+        if available.is_empty() {
+            return Ok(Located::Eof);
+        }
+        let start = usize::from(self.skip_lf && available[0] == b'\n');
+        let Some(i) = memchr::memchr2(b'\n', b'\r', &available[start..]) else {
+            return Ok(Located::Split);
+        };
+        let end = start + i;
+        if end - start > self.options.max_line_len {
+            return Ok(Located::Split);
+        }
+        self.skip_lf = available[end] == b'\r';
+        Ok(Located::InBuffer {
+            start,
+            end,
+            consume: end + 1,
+        })
+    }
+
+    fn io_error(&mut self, err: &io::Error) -> GcodeError {
+        self.failed_io = true;
+        io_error(&self.source, self.line + 1, err)
+    }
+
+    fn error(&self, span: Span, kind: ErrorKind) -> GcodeError {
+        let text = String::from_utf8_lossy(&self.buf);
+        GcodeError::new(&self.source, span, &text, kind)
+    }
+
+    /// Reads bytes up to the next line end into `buf` (without the terminator), keeping at most
+    /// `max_line_len` bytes.
+    fn read_raw_line(&mut self) -> io::Result<RawLine> {
+        self.buf.clear();
+        let mut got_any = false;
+        let mut too_long = false;
+        loop {
+            let available = match self.input.fill_buf() {
+                Ok(bytes) => bytes,
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
+                Err(err) => return Err(err),
+            };
+            if available.is_empty() {
+                return Ok(if got_any {
+                    RawLine::Line { too_long }
+                } else {
+                    RawLine::Eof
+                });
+            }
+            let start = usize::from(std::mem::take(&mut self.skip_lf) && available[0] == b'\n');
+            let rest = &available[start..];
+            let found = memchr::memchr2(b'\n', b'\r', rest);
+            let take = found.unwrap_or(rest.len());
+            let room = self.options.max_line_len - self.buf.len();
+            if take > room {
+                too_long = true;
+            }
+            self.buf.extend_from_slice(&rest[..take.min(room)]);
+            got_any |= take > 0;
+            let consumed = match found {
+                Some(i) => {
+                    self.skip_lf = rest[i] == b'\r';
+                    start + i + 1
+                }
+                None => start + take,
+            };
+            self.input.consume(consumed);
+            self.bytes_consumed += consumed as u64;
+            if found.is_some() {
+                return Ok(RawLine::Line { too_long });
+            }
+        }
+    }
+}
+
+fn io_error(source: &Arc<str>, line: u64, err: &io::Error) -> GcodeError {
+    GcodeError::new(
+        source,
+        span_of(line, 0, 0),
+        "",
+        ErrorKind::Io(err.to_string()),
+    )
+}
+
+/// Checks UTF-8 (lossy inside `;` comments, with a warning) and lexes one line.
+fn lex_bytes<'a>(
+    bytes: &'a [u8],
+    line: u64,
+    (tokens, lossy, warnings): (&'a mut LineTokens, &'a mut String, &mut Warnings),
+    source: &Arc<str>,
+) -> Result<Line<'a>, GcodeError> {
+    let text = match std::str::from_utf8(bytes) {
+        Ok(text) => text,
+        Err(err) => {
+            let bad = err.valid_up_to();
+            let span = span_of(line, bad, bad + 1);
+            if memchr::memchr(b';', &bytes[..bad]).is_none() {
+                let text = String::from_utf8_lossy(bytes);
+                return Err(GcodeError::new(source, span, &text, ErrorKind::InvalidUtf8));
+            }
+            lossy.clear();
+            lossy.push_str(&String::from_utf8_lossy(bytes));
+            warnings.push(Warning {
+                span,
+                kind: WarningKind::LossyComment,
+                message: "non-UTF-8 bytes in a comment replaced by U+FFFD".to_owned(),
+            });
+            lossy.as_str()
+        }
+    };
+    match lex_line(text, line, tokens) {
+        Ok(()) => Ok(Line::new(text, tokens)),
+        Err(err) => {
+            let span = span_of(line, err.start, err.end);
+            Err(GcodeError::new(source, span, text, err.kind))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lines(input: &[u8]) -> Vec<String> {
+        let mut reader = Reader::new(input, "t");
+        let mut out = Vec::new();
+        while let Some(line) = reader.next_line() {
+            out.push(line.expect("line").text().to_owned());
+        }
+        out
+    }
+
+    #[test]
+    fn line_ends() {
+        assert_eq!(lines(b"G1\nG2\r\n;c\rM3"), vec!["G1", "G2", ";c", "M3"]);
+        assert_eq!(lines(b"G1\r\n\r\nG2\n"), vec!["G1", "", "G2"]);
+        assert!(lines(b"").is_empty());
+        assert_eq!(lines(b"\n"), vec![""]);
+    }
+
+    #[test]
+    fn crlf_split_across_buffer_refills() {
+        let data = b"G1 X1\r\nG1 X2\r\nG1 X3";
+        for capacity in 1..8 {
+            let reader = io::BufReader::with_capacity(capacity, &data[..]);
+            let mut reader = Reader::new(reader, "t");
+            let mut count = 0;
+            while let Some(line) = reader.next_line() {
+                let line = line.expect("line");
+                count += 1;
+                assert_eq!(line.number(), count);
+                assert_eq!(line.words().len(), 1);
+            }
+            assert_eq!(count, 3, "capacity {capacity}");
+        }
+    }
+
+    #[test]
+    fn too_long_lines_are_skipped_with_an_error() {
+        let data = format!("G1 X{}\nG1 X2\n", "1".repeat(100));
+        let options = ReaderOptions { max_line_len: 50 };
+        let mut reader = Reader::with_options(data.as_bytes(), "t", options);
+        let first = reader.next_line().map(|r| r.map(|l| l.number()));
+        assert!(matches!(
+            first,
+            Some(Err(GcodeError {
+                kind: ErrorKind::LineTooLong { .. },
+                ..
+            }))
+        ));
+        let second = reader.next_line().map(|r| r.map(|l| l.number()));
+        assert_eq!(second, Some(Ok(2)));
+    }
+
+    #[test]
+    fn invalid_utf8_in_comment_is_lossy() {
+        let mut reader = Reader::new(&b"G1 X1 ; caf\xe9\n"[..], "t");
+        let line = reader
+            .next_line()
+            .map(|r| r.map(|l| l.comments().next().map(|c| c.text.to_owned())));
+        assert_eq!(line, Some(Ok(Some(" caf\u{fffd}".to_owned()))));
+        assert_eq!(reader.warnings().total(), 1);
+    }
+
+    #[test]
+    fn invalid_utf8_in_code_is_an_error() {
+        let mut reader = Reader::new(&b"G1 X1\nG1 X\xff2\n"[..], "t");
+        assert!(reader.next_line().is_some_and(|r| r.is_ok()));
+        let err = reader.next_line().and_then(|r| r.err());
+        assert_eq!(
+            err.map(|e| (e.kind, e.span.line, e.span.column)),
+            Some((ErrorKind::InvalidUtf8, 2, 5))
+        );
+    }
+}

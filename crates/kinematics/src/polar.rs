@@ -1,0 +1,311 @@
+//! Klipper's polar machine (rotating bed + radial arm + Z), with the assembly corrections of the centring
+//! thesis: the arm's zero displaced along the arm (`dx`) and the arm's line offset sideways (`dy`).
+//!
+//! # Geometry and sign convention (derivation)
+//! Machine frame: the bed turns about the origin; the nozzle rides on the arm, a line parallel to +X that
+//! passes `dy` beside the centre, so at arm position `r` the nozzle is at `N(r) = (dx + r, dy)`.
+//! Klipper's bed motor reading `θ` is such that the bed point `p` under the nozzle is `p = Rot(θ)·N(r)`
+//! (ideal machine: `p = (r cos θ, r sin θ)`, i.e. `θ = atan2(y, x)`, `r = √(x²+y²)`). Physically the bed
+//! has turned by `−θ` to bring `p` under the nozzle. Inverting `p = Rot(θ)·N(r)`:
+//! * `|p|² = (dx + r)² + dy²`  ⇒  `r = −dx + √(|p|² − dy²)` (the arm on the +X side, `dx + r ≥ 0`);
+//! * `atan2(p) = θ + atan2(dy, dx + r)`  ⇒  `θ = atan2(p_y, p_x) − atan2(dy, dx + r)`.
+//!
+//! The thesis writes the *bed rotation* `φ_bed = atan2(dy, dx + r) − atan2(p_y, p_x)`, which is `−θ`:
+//! the same physics, the opposite sign of the motor reading. We keep Klipper's motor sign so an ideal machine
+//! reproduces Klipper exactly. Points with `|p| < |dy|` never pass under the nozzle (`InsideMinimumRadius`).
+//!
+//! # The centre
+//! At exactly `(0, 0)` on an ideal machine the bed angle is undefined: [`Kinematics::inverse`] returns
+//! `AtCentre`, while [`Kinematics::inverse_near`] keeps the previous bed angle there (the arm is at 0, so
+//! any bed angle puts the nozzle on the centre; keeping the old one avoids a jump).
+
+use crate::common::{
+    check_axis_limits, check_stepper_limits, closest_approach, ensure_finite, ensure_finite_point,
+    first_failure, lerp, motor_from, unwrap_near,
+};
+use crate::{
+    Kinematics, Motor, MotorMap, MotorUnit, ParamError, PolarParams, ReachError, SegmentError, Vec3,
+};
+
+/// Motor order: bed (rad), arm (mm), z (mm).
+pub const BED: usize = 0;
+pub const ARM: usize = 1;
+pub const Z: usize = 2;
+
+/// A segment passing closer than this (mm) to the centre of an ideal machine goes through it.
+pub const CENTRE_TOLERANCE: f64 = 1e-9;
+
+#[derive(Debug, Clone)]
+pub struct Polar {
+    params: PolarParams,
+    motors: Vec<Motor>,
+}
+
+impl Polar {
+    pub fn new(params: PolarParams) -> Result<Self, ParamError> {
+        ensure_finite("arm_zero_offset", params.arm_zero_offset)?;
+        ensure_finite("arm_lateral_offset", params.arm_lateral_offset)?;
+        let motors = vec![
+            motor_from(&params.bed, MotorUnit::Rad)?,
+            motor_from(&params.arm, MotorUnit::Mm)?,
+            motor_from(&params.z, MotorUnit::Mm)?,
+        ];
+        Ok(Self { params, motors })
+    }
+
+    pub fn params(&self) -> &PolarParams {
+        &self.params
+    }
+
+    /// True when neither assembly offset is set (Klipper's machine, closed-form motor maps).
+    pub fn is_ideal(&self) -> bool {
+        self.params.arm_zero_offset == 0.0 && self.params.arm_lateral_offset == 0.0
+    }
+
+    /// `(bed angle in (−π, π], arm position)` for the XY point, or why there is none.
+    fn bed_and_arm(&self, x: f64, y: f64) -> Result<(f64, f64), ReachError> {
+        let (dx, dy) = (self.params.arm_zero_offset, self.params.arm_lateral_offset);
+        if dy == 0.0 && x == 0.0 && y == 0.0 {
+            return Err(ReachError::AtCentre { x, y });
+        }
+        if self.is_ideal() {
+            // Klipper's exact expressions, so step times match bit for bit.
+            return Ok((y.atan2(x), (x * x + y * y).sqrt()));
+        }
+        let rho2 = x * x + y * y;
+        let s2 = rho2 - dy * dy;
+        if s2 < 0.0 {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance: rho2.sqrt(),
+                min: dy.abs(),
+            });
+        }
+        let s = s2.sqrt();
+        // dx + r = s exactly in real arithmetic; use s to avoid a rounding step.
+        let bed = y.atan2(x) - dy.atan2(s);
+        let bed = if bed > std::f64::consts::PI {
+            bed - std::f64::consts::TAU
+        } else {
+            bed
+        };
+        let bed = if bed <= -std::f64::consts::PI {
+            bed + std::f64::consts::TAU
+        } else {
+            bed
+        };
+        Ok((bed, s - dx))
+    }
+
+    fn check_limits(&self, p: Vec3) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let (_, arm) = self.bed_and_arm(p[0], p[1])?;
+        check_stepper_limits(&self.params.arm, arm)?;
+        check_axis_limits('z', &self.params.z, p[2])
+    }
+}
+
+impl Kinematics for Polar {
+    fn name(&self) -> &'static str {
+        "polar"
+    }
+
+    fn motors(&self) -> &[Motor] {
+        &self.motors
+    }
+
+    fn motor_map(&self, motor: usize) -> MotorMap {
+        match motor {
+            BED if self.is_ideal() => MotorMap::Angle { centre: [0.0, 0.0] },
+            ARM if self.is_ideal() => MotorMap::Radius { centre: [0.0, 0.0] },
+            Z => MotorMap::Linear {
+                coeffs: [0.0, 0.0, 1.0],
+            },
+            _ => MotorMap::General,
+        }
+    }
+
+    fn inverse(&self, p: Vec3, motors: &mut [f64]) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let (bed, arm) = self.bed_and_arm(p[0], p[1])?;
+        write_motors(motors, bed, arm, p[2]);
+        Ok(())
+    }
+
+    fn inverse_near(
+        &self,
+        p: Vec3,
+        previous: &[f64],
+        motors: &mut [f64],
+    ) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let previous_bed = previous.get(BED).copied().unwrap_or(0.0);
+        match self.bed_and_arm(p[0], p[1]) {
+            Ok((bed, arm)) => write_motors(motors, unwrap_near(bed, previous_bed), arm, p[2]),
+            // Ideal machine at the centre: arm 0, any bed angle is right; keep the previous one.
+            Err(ReachError::AtCentre { .. }) if previous_bed.is_finite() => {
+                write_motors(motors, previous_bed, -self.params.arm_zero_offset, p[2])
+            }
+            Err(e) => return Err(e),
+        }
+        Ok(())
+    }
+
+    fn forward(&self, motors: &[f64]) -> Result<Vec3, ReachError> {
+        let [bed, arm, z] = match motors {
+            [b, a, z, ..] if b.is_finite() && a.is_finite() && z.is_finite() => [*b, *a, *z],
+            _ => return Err(ReachError::NotFinite),
+        };
+        if self.is_ideal() {
+            return Ok([bed.cos() * arm, bed.sin() * arm, z]);
+        }
+        // p = Rot(θ)·(dx + r, dy)
+        let (nx, ny) = (
+            self.params.arm_zero_offset + arm,
+            self.params.arm_lateral_offset,
+        );
+        let (s, c) = bed.sin_cos();
+        Ok([c * nx - s * ny, s * nx + c * ny, z])
+    }
+
+    fn jacobian(&self, p: Vec3, rows: &mut [Vec3]) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let [x, y, _] = p;
+        let dy = self.params.arm_lateral_offset;
+        let rho2 = x * x + y * y;
+        if rho2 == 0.0 {
+            return Err(ReachError::AtCentre { x, y });
+        }
+        let s2 = rho2 - dy * dy;
+        if s2 <= 0.0 {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance: rho2.sqrt(),
+                min: dy.abs(),
+            });
+        }
+        let s = s2.sqrt();
+        // arm = s − dx: ∇s = p/s.  bed = atan2(y, x) − atan2(dy, s): ∂/∂s atan2(dy, s) = −dy/ρ².
+        let bed = [
+            -y / rho2 + dy * x / (rho2 * s),
+            x / rho2 + dy * y / (rho2 * s),
+            0.0,
+        ];
+        let arm = [x / s, y / s, 0.0];
+        for (row, value) in rows.iter_mut().zip([bed, arm, [0.0, 0.0, 1.0]]) {
+            *row = value;
+        }
+        Ok(())
+    }
+
+    /// Closed form: the arm position grows with the distance from the centre, which along a straight line is
+    /// convex in `t`; so its minimum (and the centre / minimum-radius tests) is at the closest approach and
+    /// its maximum at an end point. Z is linear: end points. A failure is then located by bisection (exact,
+    /// as the distance is monotone on either side of the closest approach) and reported where it begins.
+    fn check_segment(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError> {
+        for (t, p) in [(0.0, a), (1.0, b)] {
+            ensure_finite_point(p).map_err(|reason| SegmentError { t, reason })?;
+        }
+        self.check_limits(a)
+            .map_err(|reason| SegmentError { t: 0.0, reason })?;
+        let (t_near, d_near) = closest_approach(a, b, [0.0, 0.0]);
+        let near = lerp(a, b, t_near);
+        if self.params.arm_lateral_offset == 0.0 && d_near <= CENTRE_TOLERANCE {
+            return Err(SegmentError {
+                t: t_near,
+                reason: ReachError::AtCentre {
+                    x: near[0],
+                    y: near[1],
+                },
+            });
+        }
+        let at = |t: f64| self.check_limits(lerp(a, b, t));
+        if let Err(reason) = self.check_limits(near) {
+            return Err(first_failure(0.0, t_near, reason, at));
+        }
+        if let Err(reason) = self.check_limits(b) {
+            return Err(first_failure(t_near, 1.0, reason, at));
+        }
+        Ok(())
+    }
+}
+
+fn write_motors(motors: &mut [f64], bed: f64, arm: f64, z: f64) {
+    for (m, v) in motors.iter_mut().zip([bed, arm, z]) {
+        *m = v;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::StepperParams;
+    use std::f64::consts::PI;
+
+    fn stepper(name: &str, step: f64, max: Option<f64>) -> StepperParams {
+        StepperParams {
+            name: name.into(),
+            step_distance: step,
+            position_min: None,
+            position_max: max,
+        }
+    }
+
+    fn machine(dx: f64, dy: f64) -> Polar {
+        Polar::new(PolarParams {
+            bed: stepper("stepper_bed", 2.0 * PI / 16000.0, None),
+            arm: stepper("stepper_arm", 1.0 / 80.0, Some(300.0)),
+            z: stepper("stepper_z", 0.0025, Some(200.0)),
+            arm_zero_offset: dx,
+            arm_lateral_offset: dy,
+        })
+        .expect("valid params")
+    }
+
+    #[test]
+    fn ideal_machine_is_klippers_formula() {
+        let mut m = [0.0; 3];
+        machine(0.0, 0.0)
+            .inverse([3.0, 4.0, 1.0], &mut m)
+            .expect("reachable");
+        assert_eq!(m, [4.0f64.atan2(3.0), 5.0, 1.0]);
+    }
+
+    #[test]
+    fn centre_is_an_error_but_inverse_near_keeps_the_angle() {
+        let polar = machine(0.0, 0.0);
+        let mut m = [0.0; 3];
+        assert!(matches!(
+            polar.inverse([0.0, 0.0, 0.0], &mut m),
+            Err(ReachError::AtCentre { .. })
+        ));
+        polar
+            .inverse_near([0.0, 0.0, 2.0], &[1.25, 3.0, 2.0], &mut m)
+            .expect("centre with history");
+        assert_eq!(m, [1.25, 0.0, 2.0]);
+    }
+
+    #[test]
+    fn lateral_offset_makes_a_hole_of_radius_dy() {
+        let mut m = [0.0; 3];
+        let err = machine(0.5, 2.0).inverse([1.0, 1.0, 0.0], &mut m);
+        assert!(matches!(err, Err(ReachError::InsideMinimumRadius { min, .. }) if min == 2.0));
+        assert_eq!(machine(0.5, 2.0).motor_map(BED), MotorMap::General);
+    }
+
+    #[test]
+    fn move_through_the_centre_is_refused_at_its_middle() {
+        let err = machine(0.0, 0.0)
+            .check_segment([-10.0, 0.0, 1.0], [10.0, 0.0, 1.0])
+            .expect_err("centre");
+        assert!((err.t - 0.5).abs() < 1e-12);
+        assert!(matches!(err.reason, ReachError::AtCentre { .. }));
+        assert!(
+            machine(0.0, 0.0)
+                .check_segment([-10.0, 0.1, 1.0], [10.0, 0.1, 1.0])
+                .is_ok()
+        );
+    }
+}

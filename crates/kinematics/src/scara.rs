@@ -1,0 +1,595 @@
+//! SCARA arm with a general elbow coupling (FEKT-SCARA, X-SCARA, Morgan, RepRapFirmware conventions).
+//!
+//! Joint angles `q1` (shoulder, proximal link from the shoulder axis) and `q2` (elbow, distal link relative
+//! to the proximal one). Motors: `stepper_a = q1 + shoulder_zero`, `stepper_b = q2 + c·q1 + elbow_zero`
+//! (`c·q1` computed as `q1/ecr` when the config gave `ecr`, as the FEKT fork does), `stepper_z = z`.
+//!
+//! Frames: `Standard` measures angles from +X counter-clockwise: `u = L1 cos q1 + L2 cos(q1+q2)`,
+//! `v = L1 sin q1 + L2 sin(q1+q2)` with `(u, v) = (x − ox, y − oy)`. `XScara` measures them from +Y
+//! turning towards +X (the thesis' frame after its x mirror), which is the standard frame with `u` and `v`
+//! swapped: `(u, v) = (y − oy, x − ox)`.
+//!
+//! [`Kinematics::inverse`] fails only where no arm pose exists (`OutOfReach` beyond `L1+L2`,
+//! `InsideMinimumRadius` inside `|L1−L2|`); the soft limits (base protection radius, singularity margin,
+//! joint and motor limits) are applied by [`Kinematics::check_point`] / [`Kinematics::check_segment`].
+
+use std::f64::consts::{PI, TAU};
+
+use crate::common::{
+    SEGMENT_T_TOLERANCE, check_axis_limits, check_range, check_stepper_limits, closest_approach,
+    ensure_finite, ensure_finite_point, ensure_non_negative, ensure_positive, ensure_range,
+    first_failure, lerp, motor_from, unwrap_near,
+};
+use crate::{
+    ElbowBranch, Kinematics, Motor, MotorMap, MotorUnit, ParamError, ReachError, ScaraFrame,
+    ScaraParams, SegmentError, Vec3,
+};
+
+/// Motor order: shoulder (rad), elbow (rad), z (mm).
+pub const SHOULDER: usize = 0;
+pub const ELBOW: usize = 1;
+pub const Z: usize = 2;
+
+/// Spacing (mm) of the samples that look for joint-limit crossings along a segment; a crossing found
+/// between two samples is refined by bisection to `SEGMENT_T_TOLERANCE`. A limit excursion shorter than
+/// the spacing can be missed; q1 moves less than 1 mm / base radius between samples.
+pub const SEGMENT_SAMPLE_MM: f64 = 1.0;
+/// Upper bound on samples per segment (long segments are sampled more coarsely).
+pub const SEGMENT_MAX_SAMPLES: usize = 1024;
+
+#[derive(Debug, Clone)]
+pub struct Scara {
+    params: ScaraParams,
+    motors: Vec<Motor>,
+    fekt_cos_quirk: bool,
+}
+
+/// Joint angles of one pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Joints {
+    pub q1: f64,
+    pub q2: f64,
+}
+
+impl Scara {
+    pub fn new(params: ScaraParams) -> Result<Self, ParamError> {
+        ensure_positive("link1_length", params.link1_length)?;
+        ensure_positive("link2_length", params.link2_length)?;
+        for (name, v) in [
+            ("offset_x", params.offset_x),
+            ("offset_y", params.offset_y),
+            ("elbow_coupling", params.elbow_coupling),
+            ("shoulder_zero", params.shoulder_zero),
+            ("elbow_zero", params.elbow_zero),
+        ] {
+            ensure_finite(name, v)?;
+        }
+        ensure_non_negative("base_protection_radius", params.base_protection_radius)?;
+        ensure_non_negative("singularity_margin", params.singularity_margin)?;
+        if params.singularity_margin >= 1.0 {
+            return Err(ParamError::Invalid {
+                name: "singularity_margin".into(),
+                reason: format!(
+                    "|sin q2| floor {} leaves no usable pose (must be < 1)",
+                    params.singularity_margin
+                ),
+            });
+        }
+        ensure_range("shoulder_limits", params.shoulder_limits)?;
+        ensure_range("elbow_limits", params.elbow_limits)?;
+        if let Some(ecr) = params.ecr {
+            ensure_finite("ecr", ecr)?;
+            if ecr == 0.0 {
+                return Err(ParamError::Invalid {
+                    name: "ecr".into(),
+                    reason: "must not be zero".into(),
+                });
+            }
+            if (params.elbow_coupling - 1.0 / ecr).abs() > 1e-12 {
+                return Err(ParamError::Invalid {
+                    name: "elbow_coupling".into(),
+                    reason: format!(
+                        "{} disagrees with ecr {ecr} (expected 1/ecr)",
+                        params.elbow_coupling
+                    ),
+                });
+            }
+        }
+        let motors = vec![
+            motor_from(&params.shoulder_stepper, MotorUnit::Rad)?,
+            motor_from(&params.elbow_stepper, MotorUnit::Rad)?,
+            motor_from(&params.z, MotorUnit::Mm)?,
+        ];
+        Ok(Self {
+            params,
+            motors,
+            fekt_cos_quirk: false,
+        })
+    }
+
+    /// Replicates the FEKT fork's quirk: where `|cos q2| < 1e-9` it uses `q2 = acos(1e-6)` instead of
+    /// `acos(cos q2)` (a ~1e-6 rad jump at right-angle elbows). Only for bit-exact comparisons with its output.
+    pub fn with_fekt_cos_quirk(mut self, on: bool) -> Self {
+        self.fekt_cos_quirk = on;
+        self
+    }
+
+    pub fn params(&self) -> &ScaraParams {
+        &self.params
+    }
+
+    /// Shoulder axis in bed coordinates.
+    pub fn shoulder(&self) -> [f64; 2] {
+        [self.params.offset_x, self.params.offset_y]
+    }
+
+    /// Innermost distance from the shoulder allowed by geometry, base protection and singularity margin.
+    pub fn min_radius(&self) -> f64 {
+        let (inner, _) = self.singular_free_band();
+        inner.max(self.params.base_protection_radius)
+    }
+
+    /// Outermost distance from the shoulder allowed by geometry and the singularity margin.
+    pub fn max_radius(&self) -> f64 {
+        self.singular_free_band().1
+    }
+
+    /// Distances from the shoulder where `|sin q2| ≥ margin` holds:
+    /// `|cos q2| ≤ k = √(1 − m²)` ⇔ `ρ² ∈ [L1² + L2² − 2·L1·L2·k, L1² + L2² + 2·L1·L2·k]`.
+    fn singular_free_band(&self) -> (f64, f64) {
+        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
+        let m = self.params.singularity_margin;
+        let k = (1.0 - m * m).sqrt();
+        let mid = l1 * l1 + l2 * l2;
+        let span = 2.0 * l1 * l2 * k;
+        ((mid - span).max(0.0).sqrt(), (mid + span).sqrt())
+    }
+
+    /// Arm-frame coordinates `(u, v)` of a bed point.
+    fn arm_frame(&self, x: f64, y: f64) -> (f64, f64) {
+        let (u, v) = (x - self.params.offset_x, y - self.params.offset_y);
+        match self.params.frame {
+            ScaraFrame::Standard => (u, v),
+            ScaraFrame::XScara => (v, u),
+        }
+    }
+
+    fn bed_frame(&self, u: f64, v: f64) -> (f64, f64) {
+        let (a, b) = match self.params.frame {
+            ScaraFrame::Standard => (u, v),
+            ScaraFrame::XScara => (v, u),
+        };
+        (a + self.params.offset_x, b + self.params.offset_y)
+    }
+
+    /// Joint angles for an XY point on the configured branch, `q1` normalised to `(−π, π]` (the difference
+    /// of two `atan2` can leave that range; inside it the value is bit-identical to the fork's expression).
+    pub fn joints(&self, x: f64, y: f64) -> Result<Joints, ReachError> {
+        let (u, v) = self.arm_frame(x, y);
+        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
+        let cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+        if cos_q2 > 1.0 {
+            return Err(ReachError::OutOfReach {
+                x,
+                y,
+                distance: (u * u + v * v).sqrt(),
+                max: l1 + l2,
+            });
+        }
+        if cos_q2 < -1.0 {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance: (u * u + v * v).sqrt(),
+                min: (l1 - l2).abs(),
+            });
+        }
+        if cos_q2.is_nan() {
+            return Err(ReachError::NotFinite);
+        }
+        let used_cos = if self.fekt_cos_quirk && cos_q2.abs() < 1e-9 {
+            1e-6
+        } else {
+            cos_q2
+        };
+        let q2 = match self.params.elbow {
+            ElbowBranch::Left => used_cos.acos(),
+            ElbowBranch::Right => -used_cos.acos(),
+        };
+        let q1 = v.atan2(u) - (l2 * q2.sin()).atan2(l1 + l2 * q2.cos());
+        Ok(Joints {
+            q1: normalise(q1),
+            q2,
+        })
+    }
+
+    /// `c·q1`, as a division when `ecr` was configured (the fork's exact arithmetic).
+    fn coupling(&self, q1: f64) -> f64 {
+        match self.params.ecr {
+            Some(ecr) => q1 / ecr,
+            None => self.params.elbow_coupling * q1,
+        }
+    }
+
+    fn motors_from_joints(&self, j: Joints, z: f64, motors: &mut [f64]) {
+        let a = j.q1 + self.params.shoulder_zero;
+        let b = j.q2 + self.coupling(j.q1) + self.params.elbow_zero;
+        for (m, v) in motors.iter_mut().zip([a, b, z]) {
+            *m = v;
+        }
+    }
+
+    /// Joint angles from motor positions.
+    pub fn joints_from_motors(&self, a: f64, b: f64) -> Joints {
+        let q1 = a - self.params.shoulder_zero;
+        let q2 = b - self.params.elbow_zero - self.coupling(q1);
+        Joints { q1, q2 }
+    }
+
+    /// Soft limits of one point with known joint angles (q1 as it would be commanded).
+    fn check_pose(&self, p: Vec3, j: Joints) -> Result<(), ReachError> {
+        let [x, y, z] = p;
+        let (u, v) = self.arm_frame(x, y);
+        let distance = (u * u + v * v).sqrt();
+        if distance < self.params.base_protection_radius {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance,
+                min: self.params.base_protection_radius,
+            });
+        }
+        let sin_q2 = j.q2.sin().abs();
+        if sin_q2 < self.params.singularity_margin {
+            return Err(ReachError::Singular {
+                x,
+                y,
+                sin_q2,
+                margin: self.params.singularity_margin,
+            });
+        }
+        let branch_ok = match self.params.elbow {
+            ElbowBranch::Left => j.q2 >= 0.0,
+            ElbowBranch::Right => j.q2 <= 0.0,
+        };
+        if !branch_ok {
+            return Err(ReachError::BranchImpossible { x, y });
+        }
+        if let Some((min, max)) = self.params.shoulder_limits {
+            check_range("q1 (shoulder joint)", j.q1, Some(min), Some(max))?;
+        }
+        if let Some((min, max)) = self.params.elbow_limits {
+            check_range("q2 (elbow joint)", j.q2, Some(min), Some(max))?;
+        }
+        let mut motors = [0.0; 3];
+        self.motors_from_joints(j, z, &mut motors);
+        check_stepper_limits(&self.params.shoulder_stepper, motors[SHOULDER])?;
+        check_stepper_limits(&self.params.elbow_stepper, motors[ELBOW])?;
+        check_axis_limits('z', &self.params.z, z)
+    }
+
+    /// Whether a q1-dependent limit (shoulder joint, either motor) could be crossed on a segment starting
+    /// with shoulder angle `q1_start`. Along a straight segment that stays out of the singular circles,
+    /// `q1 = θ − β` where the direction `θ` from the shoulder turns by less than π and `β ∈ [0, π]`
+    /// (mirrored on the right branch) changes by at most π: `|q1 − q1_start| < 2π`, and `|q2| ≤ π`.
+    /// Limits wider than that bound never bind, and the sampling is skipped.
+    fn q1_limits_may_bind(&self, q1_start: f64) -> bool {
+        let q1 = (q1_start - TAU, q1_start + TAU);
+        let outside = |lo: f64, hi: f64, min: Option<f64>, max: Option<f64>| {
+            min.is_some_and(|m| lo < m) || max.is_some_and(|m| hi > m)
+        };
+        let shoulder = self
+            .params
+            .shoulder_limits
+            .is_some_and(|(min, max)| outside(q1.0, q1.1, Some(min), Some(max)));
+        let a = &self.params.shoulder_stepper;
+        let a_zero = self.params.shoulder_zero;
+        let motor_a = outside(q1.0 + a_zero, q1.1 + a_zero, a.position_min, a.position_max);
+        let c = self.params.elbow_coupling;
+        let (c_lo, c_hi) = if c >= 0.0 {
+            (c * q1.0, c * q1.1)
+        } else {
+            (c * q1.1, c * q1.0)
+        };
+        let b = &self.params.elbow_stepper;
+        let b_zero = self.params.elbow_zero;
+        let motor_b = outside(
+            -PI + c_lo + b_zero,
+            PI + c_hi + b_zero,
+            b.position_min,
+            b.position_max,
+        );
+        shoulder || motor_a || motor_b
+    }
+
+    /// Joint angles at `t` of the segment with q1 continuous from `previous_q1`.
+    fn joints_near(&self, p: Vec3, previous_q1: f64) -> Result<Joints, ReachError> {
+        let j = self.joints(p[0], p[1])?;
+        Ok(Joints {
+            q1: unwrap_near(j.q1, previous_q1),
+            q2: j.q2,
+        })
+    }
+
+    /// Samples the segment for shoulder/motor limit crossings (q1 is not monotone along a line).
+    fn sample_joint_limits(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError> {
+        let length = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+        let samples = ((length / SEGMENT_SAMPLE_MM).ceil() as usize).clamp(1, SEGMENT_MAX_SAMPLES);
+        let start = self
+            .joints(a[0], a[1])
+            .map_err(|reason| SegmentError { t: 0.0, reason })?;
+        let mut good_t = 0.0;
+        let mut good_q1 = start.q1;
+        for i in 1..=samples {
+            let t = i as f64 / samples as f64;
+            let p = lerp(a, b, t);
+            let state = self
+                .joints_near(p, good_q1)
+                .and_then(|j| self.check_pose(p, j).map(|()| j));
+            match state {
+                Ok(j) => {
+                    good_t = t;
+                    good_q1 = j.q1;
+                }
+                Err(_) => return Err(self.refine_crossing(a, b, good_t, good_q1, t)),
+            }
+        }
+        Ok(())
+    }
+
+    /// Bisects between a good `t` and a bad `t` to locate where the segment first fails.
+    fn refine_crossing(
+        &self,
+        a: Vec3,
+        b: Vec3,
+        mut good_t: f64,
+        mut good_q1: f64,
+        mut bad_t: f64,
+    ) -> SegmentError {
+        let mut reason = ReachError::NotFinite;
+        while bad_t - good_t > SEGMENT_T_TOLERANCE {
+            let mid = 0.5 * (good_t + bad_t);
+            let p = lerp(a, b, mid);
+            match self
+                .joints_near(p, good_q1)
+                .and_then(|j| self.check_pose(p, j).map(|()| j))
+            {
+                Ok(j) => {
+                    good_t = mid;
+                    good_q1 = j.q1;
+                }
+                Err(e) => {
+                    bad_t = mid;
+                    reason = e;
+                }
+            }
+        }
+        if reason == ReachError::NotFinite {
+            let p = lerp(a, b, bad_t);
+            if let Err(e) = self
+                .joints_near(p, good_q1)
+                .and_then(|j| self.check_pose(p, j))
+            {
+                reason = e;
+            }
+        }
+        SegmentError { t: bad_t, reason }
+    }
+
+    fn check_point_inner(&self, p: Vec3) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let j = self.joints(p[0], p[1])?;
+        self.check_pose(p, j)
+    }
+}
+
+/// Angle in `(−π, π]`.
+fn normalise(a: f64) -> f64 {
+    if a > PI {
+        a - TAU
+    } else if a <= -PI {
+        a + TAU
+    } else {
+        a
+    }
+}
+
+impl Kinematics for Scara {
+    fn name(&self) -> &'static str {
+        "scara"
+    }
+
+    fn motors(&self) -> &[Motor] {
+        &self.motors
+    }
+
+    fn motor_map(&self, motor: usize) -> MotorMap {
+        if motor == Z {
+            MotorMap::Linear {
+                coeffs: [0.0, 0.0, 1.0],
+            }
+        } else {
+            MotorMap::General
+        }
+    }
+
+    fn inverse(&self, p: Vec3, motors: &mut [f64]) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let j = self.joints(p[0], p[1])?;
+        self.motors_from_joints(j, p[2], motors);
+        Ok(())
+    }
+
+    fn inverse_near(
+        &self,
+        p: Vec3,
+        previous: &[f64],
+        motors: &mut [f64],
+    ) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let j = self.joints(p[0], p[1])?;
+        let q1 = match previous.get(SHOULDER) {
+            Some(prev) if prev.is_finite() => unwrap_near(j.q1, prev - self.params.shoulder_zero),
+            _ => j.q1,
+        };
+        self.motors_from_joints(Joints { q1, q2: j.q2 }, p[2], motors);
+        Ok(())
+    }
+
+    fn forward(&self, motors: &[f64]) -> Result<Vec3, ReachError> {
+        let [a, b, z] = match motors {
+            [a, b, z, ..] if a.is_finite() && b.is_finite() && z.is_finite() => [*a, *b, *z],
+            _ => return Err(ReachError::NotFinite),
+        };
+        let Joints { q1, q2 } = self.joints_from_motors(a, b);
+        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
+        let u = l1 * q1.cos() + l2 * (q1 + q2).cos();
+        let v = l1 * q1.sin() + l2 * (q1 + q2).sin();
+        let (x, y) = self.bed_frame(u, v);
+        Ok([x, y, z])
+    }
+
+    fn jacobian(&self, p: Vec3, rows: &mut [Vec3]) -> Result<(), ReachError> {
+        ensure_finite_point(p)?;
+        let [x, y, _] = p;
+        let Joints { q1, q2 } = self.joints(x, y)?;
+        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
+        let det = l1 * l2 * q2.sin();
+        if det == 0.0 {
+            return Err(ReachError::Singular {
+                x,
+                y,
+                sin_q2: 0.0,
+                margin: self.params.singularity_margin,
+            });
+        }
+        // Forward Jacobian [[∂u/∂q1, ∂u/∂q2], [∂v/∂q1, ∂v/∂q2]] inverted in closed form (det = L1·L2·sin q2).
+        let (s1, c1) = q1.sin_cos();
+        let (s12, c12) = (q1 + q2).sin_cos();
+        let (du_dq1, du_dq2) = (-l1 * s1 - l2 * s12, -l2 * s12);
+        let (dv_dq1, dv_dq2) = (l1 * c1 + l2 * c12, l2 * c12);
+        let q1_uv = [dv_dq2 / det, -du_dq2 / det];
+        let q2_uv = [-dv_dq1 / det, du_dq1 / det];
+        let to_xy = |g: [f64; 2]| match self.params.frame {
+            ScaraFrame::Standard => [g[0], g[1], 0.0],
+            ScaraFrame::XScara => [g[1], g[0], 0.0],
+        };
+        let q1_row = to_xy(q1_uv);
+        let q2_row = to_xy(q2_uv);
+        let c = self.params.elbow_coupling;
+        let b_row = [q2_row[0] + c * q1_row[0], q2_row[1] + c * q1_row[1], 0.0];
+        for (row, value) in rows.iter_mut().zip([q1_row, b_row, [0.0, 0.0, 1.0]]) {
+            *row = value;
+        }
+        Ok(())
+    }
+
+    /// Closed form for everything that depends only on the distance `ρ` from the shoulder (reach, base
+    /// protection, singular band, q2 and its limits): `ρ(t)` is convex along a line, so its minimum is at the
+    /// closest approach and its maximum at an end point; a failure is located by bisection where it begins.
+    /// q1 and the motor limits are sampled every [`SEGMENT_SAMPLE_MM`] (only when such limits are
+    /// configured tightly enough to bind) and crossings refined by bisection to 1e-9 of the segment.
+    /// No branch switch can happen inside an accepted segment: it would need `sin q2 = 0`, i.e. `ρ` at
+    /// `L1 + L2` or `|L1 − L2|`, which the reach checks refuse.
+    fn check_segment(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError> {
+        for (t, p) in [(0.0, a), (1.0, b)] {
+            ensure_finite_point(p).map_err(|reason| SegmentError { t, reason })?;
+        }
+        self.check_point_inner(a)
+            .map_err(|reason| SegmentError { t: 0.0, reason })?;
+        // Sampling first, so the reported `t` is the first crossing even when the end point fails too.
+        let q1_start = self.joints(a[0], a[1]).map(|j| j.q1).unwrap_or(0.0);
+        if self.q1_limits_may_bind(q1_start) {
+            self.sample_joint_limits(a, b)?;
+        }
+        let (t_near, _) = closest_approach(a, b, self.shoulder());
+        let at = |t: f64| self.check_point_inner(lerp(a, b, t));
+        if let Err(reason) = at(t_near) {
+            return Err(first_failure(0.0, t_near, reason, at));
+        }
+        if let Err(reason) = at(1.0) {
+            return Err(first_failure(t_near, 1.0, reason, at));
+        }
+        Ok(())
+    }
+
+    fn check_point(&self, p: Vec3) -> Result<(), ReachError> {
+        self.check_point_inner(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::StepperParams;
+
+    fn stepper(name: &str) -> StepperParams {
+        StepperParams {
+            name: name.into(),
+            step_distance: TAU / 9600.0,
+            position_min: None,
+            position_max: None,
+        }
+    }
+
+    pub(crate) fn fekt() -> Scara {
+        Scara::new(ScaraParams {
+            shoulder_stepper: stepper("stepper_a"),
+            elbow_stepper: stepper("stepper_b"),
+            z: stepper("stepper_z"),
+            link1_length: 100.0,
+            link2_length: 100.0,
+            offset_x: 0.0,
+            offset_y: 0.0,
+            elbow_coupling: 1.0 / 3.0,
+            ecr: Some(3.0),
+            elbow: ElbowBranch::Left,
+            frame: ScaraFrame::Standard,
+            shoulder_zero: 0.0,
+            elbow_zero: 0.0,
+            shoulder_limits: None,
+            elbow_limits: None,
+            base_protection_radius: 60.0,
+            singularity_margin: 0.0,
+        })
+        .expect("valid params")
+    }
+
+    #[test]
+    fn out_of_reach_is_an_error_not_nan() {
+        let mut m = [0.0; 3];
+        let err = fekt().inverse([0.0, 250.0, 0.0], &mut m);
+        assert!(matches!(err, Err(ReachError::OutOfReach { max, .. }) if max == 200.0));
+    }
+
+    #[test]
+    fn base_protection_applies_to_points_not_to_inverse() {
+        let mut m = [0.0; 3];
+        assert!(fekt().inverse([0.0, 30.0, 0.0], &mut m).is_ok());
+        assert!(matches!(
+            fekt().check_point([0.0, 30.0, 0.0]),
+            Err(ReachError::InsideMinimumRadius { .. })
+        ));
+    }
+
+    #[test]
+    fn mismatched_ecr_and_coupling_are_refused() {
+        let mut p = fekt().params().clone();
+        p.elbow_coupling = 0.5;
+        assert!(matches!(Scara::new(p), Err(ParamError::Invalid { .. })));
+    }
+
+    #[test]
+    fn singular_band_matches_the_margin() {
+        let mut p = fekt().params().clone();
+        p.singularity_margin = 0.1;
+        let s = Scara::new(p).expect("valid");
+        // |sin q2| = 0.1 ⇒ cos q2 = √0.99 ⇒ ρ² = 2·100²·(1 + √0.99)
+        let expected = (20000.0 * (1.0 + 0.99f64.sqrt())).sqrt();
+        assert!((s.max_radius() - expected).abs() < 1e-9);
+        assert!(matches!(
+            s.check_point([0.0, 199.9, 0.0]),
+            Err(ReachError::Singular { .. })
+        ));
+    }
+}

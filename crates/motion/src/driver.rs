@@ -1,0 +1,187 @@
+//! From interpreted G-code commands to toolhead actions, with Klipper's handling of each command.
+
+use crate::arcs::split_arc;
+use crate::limits::VelocityLimits;
+use crate::toolhead::{MoveError, Toolhead};
+use gcode::{AccelParams, Command, Span, Spanned, VelocityLimit};
+use trapq::MoveSink;
+
+/// A command the planner could not carry out.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("line {}:{}: {kind}", span.line, span.column)]
+pub struct PlanError {
+    pub span: Span,
+    pub kind: PlanErrorKind,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanErrorKind {
+    #[error(transparent)]
+    Move(#[from] MoveError),
+    #[error("{0} must be above 0")]
+    NotPositive(&'static str),
+    #[error("MINIMUM_CRUISE_RATIO must be in [0, 1)")]
+    CruiseRatio,
+    #[error("G28: this machine has no homing position configured")]
+    NoHoming,
+}
+
+/// Something the planner ignored that the user may want to know about.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Warning {
+    pub span: Span,
+    pub message: String,
+}
+
+/// Drives a [`Toolhead`] from G-code commands.
+#[derive(Debug)]
+pub struct Planner<'k, S: MoveSink> {
+    toolhead: Toolhead<'k, S>,
+    arc_resolution: f64,
+    /// Where G28 leaves the toolhead (machine coordinates), if the machine can home.
+    home_position: Option<[f64; 3]>,
+    warnings: Vec<Warning>,
+}
+
+impl<'k, S: MoveSink> Planner<'k, S> {
+    pub fn new(toolhead: Toolhead<'k, S>, arc_resolution: f64, home_position: Option<[f64; 3]>) -> Self {
+        Planner { toolhead, arc_resolution, home_position, warnings: Vec::new() }
+    }
+
+    pub fn toolhead(&self) -> &Toolhead<'k, S> {
+        &self.toolhead
+    }
+
+    pub fn warnings(&self) -> &[Warning] {
+        &self.warnings
+    }
+
+    /// Klipper's batch mode read another block of input (see [`Toolhead::input_block_boundary`]).
+    pub fn input_block_boundary(&mut self) {
+        self.toolhead.input_block_boundary();
+    }
+
+    /// Finish planning: the sink, the final print time and the warnings.
+    pub fn finish(self) -> (S, f64, Vec<Warning>) {
+        let (sink, end) = self.toolhead.finish();
+        (sink, end, self.warnings)
+    }
+
+    /// Carry out one command. Returns the machine position when it differs from what the G-code interpreter
+    /// computed (G28, `SET_KINEMATIC_POSITION`, the end of a split arc), so the interpreter can follow.
+    pub fn command(&mut self, cmd: &Spanned<Command>) -> Result<Option<[f64; 4]>, PlanError> {
+        let span = cmd.span;
+        let err = |kind: PlanErrorKind| PlanError { span, kind };
+        match &cmd.value {
+            Command::Move(mv) => {
+                self.toolhead
+                    .move_to(mv.target, mv.feed, span.line)
+                    .map_err(|e| err(e.into()))?;
+            }
+            Command::Arc(arc) => {
+                for point in split_arc(arc, self.arc_resolution) {
+                    self.toolhead
+                        .move_to(point, arc.feed, span.line)
+                        .map_err(|e| err(e.into()))?;
+                }
+                return Ok(Some(self.toolhead.position()));
+            }
+            Command::Dwell { seconds } => self.toolhead.dwell(*seconds),
+            Command::WaitForMoves => self.toolhead.wait_moves(),
+            Command::Home { axes } => {
+                self.home(*axes).map_err(err)?;
+                return Ok(Some(self.toolhead.position()));
+            }
+            Command::SetKinematicPosition { position } => {
+                let current = self.toolhead.position();
+                let xyz = [0, 1, 2].map(|i| position[i].unwrap_or(current[i]));
+                self.toolhead.set_position(xyz);
+                return Ok(Some(self.toolhead.position()));
+            }
+            Command::SetAccel(params) => self.set_accel(span, params).map_err(err)?,
+            Command::SetVelocityLimit(v) => self.set_velocity_limit(v).map_err(err)?,
+            Command::Other { name } if name == "M84" || name == "M18" => self.toolhead.motors_off(),
+            Command::SetPosition { .. }
+            | Command::SpeedFactor(_)
+            | Command::ExtrudeFactor(_)
+            | Command::Other { .. }
+            | Command::Meta(_) => {}
+        }
+        Ok(None)
+    }
+
+    /// G28: the machine runs to its endstops; the pose there is known from the configuration.
+    /// Axes not named keep their position; a polar or SCARA machine homes X and Y together.
+    fn home(&mut self, axes: [bool; 3]) -> Result<[f64; 3], PlanErrorKind> {
+        let home = self.home_position.ok_or(PlanErrorKind::NoHoming)?;
+        let all = axes == [false; 3];
+        let current = self.toolhead.position();
+        let xy = all || axes[0] || axes[1];
+        let pick = |i: usize, homed: bool| if homed { home[i] } else { current[i] };
+        let xyz = [pick(0, xy), pick(1, xy), pick(2, all || axes[2])];
+        self.toolhead.set_position(xyz);
+        Ok(xyz)
+    }
+
+    /// M204 as Klipper reads it: `S`, or else the smaller of `P` and `T` (both needed).
+    fn set_accel(&mut self, span: Span, params: &AccelParams) -> Result<(), PlanErrorKind> {
+        let accel = match (params.s, params.p, params.t) {
+            (Some(s), _, _) => s,
+            (None, Some(p), Some(t)) => {
+                positive(p, "P")?;
+                positive(t, "T")?;
+                p.min(t)
+            }
+            _ => {
+                self.warnings.push(Warning {
+                    span,
+                    message: "M204 needs S, or both P and T; ignored".into(),
+                });
+                return Ok(());
+            }
+        };
+        positive(accel, "M204 acceleration")?;
+        let mut limits = self.toolhead.limits();
+        limits.max_accel = accel;
+        self.toolhead.set_limits(limits);
+        Ok(())
+    }
+
+    fn set_velocity_limit(&mut self, v: &VelocityLimit) -> Result<(), PlanErrorKind> {
+        let mut limits: VelocityLimits = self.toolhead.limits();
+        if let Some(velocity) = v.velocity {
+            limits.max_velocity = positive(velocity, "VELOCITY")?;
+        }
+        if let Some(accel) = v.accel {
+            limits.max_accel = positive(accel, "ACCEL")?;
+        }
+        if let Some(scv) = v.square_corner_velocity {
+            if !(scv >= 0.0) || !scv.is_finite() {
+                return Err(PlanErrorKind::NotPositive("SQUARE_CORNER_VELOCITY"));
+            }
+            limits.square_corner_velocity = scv;
+        }
+        let ratio = match (v.minimum_cruise_ratio, v.accel_to_decel) {
+            (Some(ratio), _) => Some(ratio),
+            // The old ACCEL_TO_DECEL parameter, converted as Klipper converts max_accel_to_decel.
+            (None, Some(atd)) => Some(1.0 - (positive(atd, "ACCEL_TO_DECEL")? / limits.max_accel).min(1.0)),
+            (None, None) => None,
+        };
+        if let Some(ratio) = ratio {
+            if !(0.0..1.0).contains(&ratio) {
+                return Err(PlanErrorKind::CruiseRatio);
+            }
+            limits.minimum_cruise_ratio = ratio;
+        }
+        self.toolhead.set_limits(limits);
+        Ok(())
+    }
+}
+
+fn positive(value: f64, what: &'static str) -> Result<f64, PlanErrorKind> {
+    if value > 0.0 && value.is_finite() {
+        Ok(value)
+    } else {
+        Err(PlanErrorKind::NotPositive(what))
+    }
+}

@@ -1,0 +1,110 @@
+//! Velocity and acceleration limits of the toolhead, as Klipper's `[printer]` section and
+//! `SET_VELOCITY_LIMIT`/`M204` define them.
+
+/// The limits that `SET_VELOCITY_LIMIT` and `M204` may change while printing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityLimits {
+    pub max_velocity: f64,
+    pub max_accel: f64,
+    pub square_corner_velocity: f64,
+    pub minimum_cruise_ratio: f64,
+}
+
+impl VelocityLimits {
+    /// Distance (mm) the path may deviate from a corner: Klipper derives it from the square-corner velocity
+    /// so that a 90° corner is taken at exactly that speed.
+    pub fn junction_deviation(&self) -> f64 {
+        let scv2 = self.square_corner_velocity * self.square_corner_velocity;
+        scv2 * (2f64.sqrt() - 1.0) / self.max_accel
+    }
+
+    /// The acceleration used by the minimum-cruise-ratio track of the lookahead.
+    pub fn mcr_pseudo_accel(&self) -> f64 {
+        self.max_accel * (1.0 - self.minimum_cruise_ratio)
+    }
+}
+
+/// Limits on the extruder, from `[extruder]` (Klipper's defaults already resolved).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExtruderLimits {
+    /// Largest filament-per-path ratio an extruding move may have (max cross-section / filament area).
+    pub max_extrude_ratio: f64,
+    /// Filament cross-section (mm²), for error messages.
+    pub filament_area: f64,
+    pub nozzle_diameter: f64,
+    /// Speed and acceleration limits of extrude-only moves and retractions (mm/s, mm/s² of filament).
+    pub max_e_velocity: f64,
+    pub max_e_accel: f64,
+    /// Longest extrude-only move allowed (mm of filament).
+    pub max_e_distance: f64,
+    /// Largest instantaneous change of extruder velocity at a corner (mm/s).
+    pub instantaneous_corner_velocity: f64,
+}
+
+/// Everything the planner needs to know about the machine, fixed for a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannerConfig {
+    /// Limits at start; commands may change them later.
+    pub limits: VelocityLimits,
+    /// Z speed limits (applied to moves with Z motion, scaled by the Z share of the move).
+    pub max_z_velocity: f64,
+    pub max_z_accel: f64,
+    /// Apply `max_z_velocity`/`max_z_accel`. Klipper's cartesian and polar kinematics do; the FEKT-SCARA
+    /// module does not.
+    pub apply_z_limits: bool,
+    /// `None`: the machine has no extruder and any E motion is an error.
+    pub extruder: Option<ExtruderLimits>,
+    /// Arc segment length of `[gcode_arcs]` (mm).
+    pub arc_resolution: f64,
+    /// Print time of the first move (Klipper's `BUFFER_TIME_START`).
+    pub buffer_time_start: f64,
+    /// Delay between the end of step generation and a restart (Klipper's `kin_flush_delay`).
+    pub kin_flush_delay: f64,
+    /// Print time up to which steps count as generated before the first move. Klipper: 0. The FEKT-SCARA
+    /// Kalico fork flushes step generation at `buffer_time_start` on `SET_KINEMATIC_POSITION`, so its first move
+    /// starts one `kin_flush_delay` later; set this to `buffer_time_start` to reproduce it.
+    pub initial_step_gen_time: f64,
+    /// Reproduce Klipper's batch mode (`klippy.py -i`): its background flusher plans all queued moves to a
+    /// stop whenever step generation catches up with them, at points set by 4096-byte input blocks and by the
+    /// first second of print time. Off: moves are planned by the lookahead alone (what a live printer does
+    /// when fed fast enough). Needed only to compare with Klipper's batch output.
+    pub klipper_batch_flush: bool,
+}
+
+impl PlannerConfig {
+    /// Klipper's defaults around the given velocity limits, with an extruder-less, Z-limited machine.
+    pub fn klipper(limits: VelocityLimits) -> Self {
+        PlannerConfig {
+            limits,
+            max_z_velocity: limits.max_velocity,
+            max_z_accel: limits.max_accel,
+            apply_z_limits: true,
+            extruder: None,
+            arc_resolution: 1.0,
+            buffer_time_start: 0.25,
+            kin_flush_delay: 0.001,
+            initial_step_gen_time: 0.0,
+            klipper_batch_flush: false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn square_corner_is_taken_at_square_corner_velocity() {
+        let limits = VelocityLimits {
+            max_velocity: 300.0,
+            max_accel: 3000.0,
+            square_corner_velocity: 5.0,
+            minimum_cruise_ratio: 0.5,
+        };
+        // For a 90° corner: sin(θ/2) = √½, R = jd·sin/(1−sin), v² = R·accel must equal scv².
+        let s = 0.5f64.sqrt();
+        let v2 = limits.junction_deviation() * s / (1.0 - s) * limits.max_accel;
+        assert!((v2 - 25.0).abs() < 1e-9, "{v2}");
+        assert_eq!(limits.mcr_pseudo_accel(), 1500.0);
+    }
+}

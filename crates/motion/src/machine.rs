@@ -1,0 +1,148 @@
+//! A machine ready to plan for: kinematics, planner limits and the homing pose, built from `printer.cfg`,
+//! and the loop that plans a whole G-code stream.
+
+use crate::driver::{PlanError, Planner, Warning};
+use crate::limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
+use crate::toolhead::Toolhead;
+use config::{KinematicsKind, MachineConfig};
+use gcode::{Commands, GcodeError};
+use kinematics::Kinematics;
+use std::io::BufRead;
+use trapq::MoveSink;
+
+/// Why a machine could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum SetupError {
+    #[error("invalid machine: {0}")]
+    Kinematics(String),
+    #[error("homing pose ({x:.3}, {y:.3}) from the endstop positions is unreachable: {reason}")]
+    Home { x: f64, y: f64, reason: String },
+}
+
+/// Why planning stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Gcode(#[from] GcodeError),
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+}
+
+/// What planning a stream produced besides the moves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanSummary {
+    /// Print time at which the last move ends (s).
+    pub end_time: f64,
+    pub warnings: Vec<Warning>,
+    pub gcode_warnings: Vec<gcode::Warning>,
+}
+
+/// Kinematics + planner configuration + homing pose of one machine.
+#[derive(Debug)]
+pub struct MachineSetup {
+    pub kinematics: Box<dyn Kinematics>,
+    pub planner: PlannerConfig,
+    /// Where G28 leaves the toolhead, derived from the endstop positions through the kinematics.
+    pub home_position: Option<[f64; 3]>,
+}
+
+impl MachineSetup {
+    pub fn from_config(machine: &MachineConfig) -> Result<MachineSetup, SetupError> {
+        let kinematics = kinematics::build(&machine.params).map_err(|e| SetupError::Kinematics(e.to_string()))?;
+        let limits = &machine.limits;
+        let mut planner = PlannerConfig::klipper(VelocityLimits {
+            max_velocity: limits.max_velocity,
+            max_accel: limits.max_accel,
+            square_corner_velocity: limits.square_corner_velocity,
+            minimum_cruise_ratio: limits.minimum_cruise_ratio,
+        });
+        planner.max_z_velocity = limits.max_z_velocity;
+        planner.max_z_accel = limits.max_z_accel;
+        planner.extruder = machine.extruder.as_ref().map(|e| ExtruderLimits {
+            max_extrude_ratio: e.max_extrude_ratio,
+            filament_area: e.filament_area,
+            nozzle_diameter: e.nozzle_diameter,
+            max_e_velocity: e.max_extrude_only_velocity,
+            max_e_accel: e.max_extrude_only_accel,
+            max_e_distance: e.max_extrude_only_distance,
+            instantaneous_corner_velocity: e.instantaneous_corner_velocity,
+        });
+        if let Some(arcs) = machine.arcs {
+            planner.arc_resolution = arcs.resolution;
+        }
+        let home_position = home_position(machine, kinematics.as_ref())?;
+        Ok(MachineSetup { kinematics, planner, home_position })
+    }
+}
+
+/// The toolhead pose after every axis has run to its endstop. Polar: the arm at its endstop, the bed angle
+/// declared 0 (as Klipper does). SCARA: each joint at its endstop angle (degrees in the file), the elbow
+/// motor's reading converted through the coupling by the forward kinematics. Cartesian: every axis at its
+/// endstop.
+fn home_position(machine: &MachineConfig, kin: &dyn Kinematics) -> Result<Option<[f64; 3]>, SetupError> {
+    let endstop = |name: &str| {
+        machine
+            .stepper(name)
+            .and_then(|s| s.homing.as_ref())
+            .and_then(|h| h.position_endstop)
+    };
+    let pose = match machine.kinematics {
+        KinematicsKind::Cartesian => match (endstop("stepper_x"), endstop("stepper_y"), endstop("stepper_z")) {
+            (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+            _ => None,
+        },
+        KinematicsKind::Polar => match (endstop("stepper_arm"), endstop("stepper_z")) {
+            (Some(arm), Some(z)) => Some(kin_forward(kin, &[0.0, arm, z])?),
+            _ => None,
+        },
+        KinematicsKind::Scara => match (endstop("stepper_a"), endstop("stepper_b"), endstop("stepper_z")) {
+            (Some(a), Some(b), Some(z)) => Some(kin_forward(kin, &[a.to_radians(), b.to_radians(), z])?),
+            _ => None,
+        },
+    };
+    Ok(pose)
+}
+
+fn kin_forward(kin: &dyn Kinematics, motors: &[f64]) -> Result<[f64; 3], SetupError> {
+    let p = kin.forward(motors).map_err(|e| SetupError::Home {
+        x: f64::NAN,
+        y: f64::NAN,
+        reason: e.to_string(),
+    })?;
+    let mut check = vec![0.0; kin.motors().len()];
+    kin.inverse(p, &mut check)
+        .map_err(|e| SetupError::Home { x: p[0], y: p[1], reason: e.to_string() })?;
+    Ok(p)
+}
+
+/// Bytes Klipper's batch mode reads from its input at a time.
+const KLIPPER_INPUT_BLOCK: u64 = 4096;
+
+/// Plan a whole G-code stream on `setup`, handing planned moves to `sink`. Memory stays bounded: the
+/// stream is read line by line and the lookahead holds at most a few seconds of moves.
+pub fn plan_gcode<S: MoveSink>(
+    setup: &MachineSetup,
+    input: impl BufRead,
+    source_name: &str,
+    sink: S,
+) -> Result<(S, PlanSummary), PipelineError> {
+    let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), sink);
+    let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
+    let mut commands = Commands::from_reader(input, source_name);
+    let mut block = 0u64;
+    while let Some(command) = commands.next_command() {
+        let command = command?;
+        // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
+        let line_end_block = commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
+        while block < line_end_block {
+            planner.input_block_boundary();
+            block += 1;
+        }
+        if let Some(position) = planner.command(&command)? {
+            commands.interpreter_mut().set_position(position);
+        }
+    }
+    let gcode_warnings = commands.take_warnings();
+    let (sink, end_time, warnings) = planner.finish();
+    Ok((sink, PlanSummary { end_time, warnings, gcode_warnings }))
+}

@@ -1,0 +1,402 @@
+//! The toolhead: accepts moves, checks them, runs the lookahead and appends planned moves to the sink with
+//! their print times, the way Klipper's toolhead does in batch mode.
+
+use crate::limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
+use crate::lookahead::{BUFFER_TIME_HIGH, LookAhead, Move};
+use kinematics::{Kinematics, SegmentError};
+use trapq::{MoveSink, Queue, TrapezoidMove};
+
+/// Step generation lags at least this far behind "now" (Klipper's `MIN_KIN_TIME`).
+const MIN_KIN_TIME: f64 = 0.100;
+/// Klipper's batch-mode background flusher works in steps of this much print time.
+const BATCH_FLUSH_TIME: f64 = 0.250;
+/// It flushes step generation this far beyond the last queued move when it catches up.
+const FLUSH_EXTRA_TIME: f64 = 0.250;
+/// It only catches up when step generation is within this much of the last queued move.
+const FLUSH_CATCH_UP_WINDOW: f64 = 1.5;
+/// Step compression may flush this much earlier than step generation.
+const STEPCOMPRESS_FLUSH_TIME: f64 = 0.050;
+/// Below this much buffered print time, Klipper yields to its timers after each move.
+const BUFFER_TIME_HIGH_PAUSE: f64 = 1.0;
+/// Klipper's motors-off command dwells this long before and after disabling the motors.
+const DISABLE_STALL_TIME: f64 = 0.100;
+
+/// Why a move was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MoveError {
+    #[error("move to ({x:.3}, {y:.3}, {z:.3}) is not reachable: {source}")]
+    Unreachable { x: f64, y: f64, z: f64, source: SegmentError },
+    #[error("extrusion without an [extruder] section")]
+    NoExtruder,
+    #[error("extrude-only move of {distance:.3} mm exceeds max_extrude_only_distance ({max:.3} mm)")]
+    ExtrudeOnlyTooLong { distance: f64, max: f64 },
+    #[error(
+        "move exceeds the maximum extrusion cross-section ({area:.3} mm² vs {max_area:.3} mm², see max_extrude_cross_section)"
+    )]
+    OverExtrusion { area: f64, max_area: f64 },
+    #[error("position is not finite")]
+    NotFinite,
+}
+
+/// The toolhead state machine.
+#[derive(Debug)]
+pub struct Toolhead<'k, S: MoveSink> {
+    config: PlannerConfig,
+    limits: VelocityLimits,
+    kinematics: &'k dyn Kinematics,
+    sink: S,
+    lookahead: LookAhead,
+    flushed: Vec<Move>,
+    commanded_pos: [f64; 4],
+    print_time: f64,
+    /// The lookahead was fully flushed: the next moves re-synchronise the print time.
+    need_prime: bool,
+    /// How far step generation must go, and has gone (Klipper's motion-queuing clock).
+    clock: StepGenClock,
+    /// Print time above which the next move checks for a pause (Klipper's `need_check_pause`).
+    need_check_pause: f64,
+}
+
+/// Klipper's motion-queuing bookkeeping: how far step generation has been flushed. In batch mode
+/// (`PlannerConfig::klipper_batch_flush`) it also drives Klipper's background flusher, whose "runout" flushes
+/// of the lookahead shape the planned moves.
+#[derive(Debug, Clone, Copy)]
+struct StepGenClock {
+    last_flush_time: f64,
+    last_step_gen_time: f64,
+    need_flush_time: f64,
+    need_step_gen_time: f64,
+    /// The flush timer is idle and the next queued motion wakes it.
+    kick_armed: bool,
+    /// The flush timer is due to run at the next chance.
+    timer_due: bool,
+}
+
+impl<'k, S: MoveSink> Toolhead<'k, S> {
+    pub fn new(config: PlannerConfig, kinematics: &'k dyn Kinematics, sink: S) -> Self {
+        Toolhead {
+            limits: config.limits,
+            clock: StepGenClock {
+                last_flush_time: 0.0,
+                last_step_gen_time: config.initial_step_gen_time,
+                need_flush_time: 0.0,
+                need_step_gen_time: 0.0,
+                kick_armed: true,
+                timer_due: false,
+            },
+            need_check_pause: -1.0,
+            config,
+            kinematics,
+            sink,
+            lookahead: LookAhead::new(),
+            flushed: Vec::new(),
+            commanded_pos: [0.0; 4],
+            print_time: 0.0,
+            need_prime: true,
+        }
+    }
+
+    pub fn position(&self) -> [f64; 4] {
+        self.commanded_pos
+    }
+
+    pub fn print_time(&self) -> f64 {
+        self.print_time
+    }
+
+    pub fn limits(&self) -> VelocityLimits {
+        self.limits
+    }
+
+    pub fn sink(&self) -> &S {
+        &self.sink
+    }
+
+    /// Finish: plan and hand over every queued move (a stop after the last one).
+    pub fn finish(mut self) -> (S, f64) {
+        self.flush_lookahead();
+        self.sink.flush(self.print_time);
+        (self.sink, self.print_time)
+    }
+
+    /// Change velocity limits (`SET_VELOCITY_LIMIT`, `M204`); queued moves keep the limits they were made with.
+    pub fn set_limits(&mut self, limits: VelocityLimits) {
+        self.limits = limits;
+    }
+
+    /// Queue a straight move to `target` at `speed` mm/s. `origin` identifies the source (a G-code line).
+    pub fn move_to(&mut self, target: [f64; 4], speed: f64, origin: u64) -> Result<(), MoveError> {
+        if target.iter().any(|v| !v.is_finite()) {
+            return Err(MoveError::NotFinite);
+        }
+        let Some(mut mv) = Move::new(self.commanded_pos, target, speed, &self.limits, origin) else {
+            return Ok(());
+        };
+        if mv.is_kinematic {
+            self.check_kinematic_move(&mut mv)?;
+        }
+        if mv.axes_d[3] != 0.0 {
+            check_extrusion(self.config.extruder.as_ref(), &mut mv)?;
+        }
+        self.commanded_pos = mv.end_pos;
+        if let Some(prev) = self.lookahead.last() {
+            let extruder_v2 = extruder_junction_v2(self.config.extruder.as_ref(), prev, &mv);
+            mv.calc_junction(prev, extruder_v2);
+        }
+        if self.lookahead.push(mv) {
+            self.process_lookahead(true);
+        }
+        if self.print_time > self.need_check_pause {
+            self.check_pause();
+        }
+        Ok(())
+    }
+
+    /// Reachability along the whole segment, then the Z speed limits.
+    fn check_kinematic_move(&self, mv: &mut Move) -> Result<(), MoveError> {
+        let start = [mv.start_pos[0], mv.start_pos[1], mv.start_pos[2]];
+        let end = [mv.end_pos[0], mv.end_pos[1], mv.end_pos[2]];
+        self.kinematics
+            .check_segment(start, end)
+            .map_err(|source| MoveError::Unreachable { x: end[0], y: end[1], z: end[2], source })?;
+        if self.config.apply_z_limits && mv.axes_d[2] != 0.0 {
+            let z_ratio = mv.move_d / mv.axes_d[2].abs();
+            mv.limit_speed(self.config.max_z_velocity * z_ratio, self.config.max_z_accel * z_ratio);
+        }
+        Ok(())
+    }
+
+    /// G4: wait `seconds` after the queued moves finish.
+    pub fn dwell(&mut self, seconds: f64) {
+        self.flush_lookahead();
+        let start = self.last_move_time();
+        self.print_time = self.print_time.max(start + seconds.max(0.0));
+        self.check_pause();
+    }
+
+    /// M400: every queued move is planned to a stop.
+    pub fn wait_moves(&mut self) {
+        self.flush_lookahead();
+    }
+
+    /// M84/M18: Klipper dwells before and after disabling the motors.
+    pub fn motors_off(&mut self) {
+        self.dwell(DISABLE_STALL_TIME);
+        self.dwell(DISABLE_STALL_TIME);
+    }
+
+    /// Declare the toolhead position (homing, `SET_KINEMATIC_POSITION`): all queued motion is finished first,
+    /// and step generation restarts after a short delay.
+    pub fn set_position(&mut self, xyz: [f64; 3]) {
+        self.flush_lookahead();
+        let need = self.clock.need_step_gen_time;
+        self.advance_flush_time(need, 0.0);
+        self.commanded_pos[..3].copy_from_slice(&xyz);
+    }
+
+    /// In batch mode: Klipper read another 4096-byte block of input, and its reactor ran due timers first.
+    pub fn input_block_boundary(&mut self) {
+        if self.config.klipper_batch_flush {
+            self.run_flush_timer();
+        }
+    }
+
+    /// Declare the extruder position without moving it.
+    pub fn set_extruder_position(&mut self, e: f64) {
+        self.commanded_pos[3] = e;
+    }
+
+    fn last_move_time(&mut self) -> f64 {
+        if self.need_prime {
+            self.flush_lookahead();
+            self.calc_print_time();
+        } else {
+            self.process_lookahead(false);
+        }
+        self.print_time
+    }
+
+    fn flush_lookahead(&mut self) {
+        self.process_lookahead(false);
+        self.need_prime = true;
+        self.need_check_pause = -1.0;
+        self.lookahead.set_flush_time(BUFFER_TIME_HIGH);
+    }
+
+    /// Klipper's `_check_pause` in batch mode: with little print time buffered it yields to the reactor, whose
+    /// flush timer may run; otherwise it stops checking until the next full flush.
+    fn check_pause(&mut self) {
+        if self.print_time - BUFFER_TIME_HIGH_PAUSE > 0.0 {
+            self.need_check_pause = f64::INFINITY;
+            return;
+        }
+        if !self.need_prime {
+            self.need_check_pause = self.print_time;
+            if self.config.klipper_batch_flush {
+                self.run_flush_timer();
+            }
+        }
+    }
+
+    /// Klipper's batch-mode flush timer (`_flush_handler_debug`): step generation follows the queued moves in
+    /// fixed batches; once it is close behind, it flushes past the end, which makes the toolhead plan every
+    /// queued move to a stop.
+    fn run_flush_timer(&mut self) {
+        if !self.clock.timer_due {
+            return;
+        }
+        let catch_up_to = self.clock.need_flush_time - FLUSH_CATCH_UP_WINDOW;
+        let mut batches = 0u32;
+        while self.clock.last_step_gen_time < catch_up_to {
+            let mut target = self.clock.last_step_gen_time + BATCH_FLUSH_TIME;
+            if batches > 100 && catch_up_to > target {
+                target += ((catch_up_to - target) / BATCH_FLUSH_TIME).trunc() * BATCH_FLUSH_TIME;
+            }
+            self.advance_flush_time(0.0, target);
+            batches += 1;
+        }
+        if batches > 0 {
+            // The timer runs again at the reactor's next turn.
+            return;
+        }
+        let past_end = self.clock.need_flush_time + FLUSH_EXTRA_TIME;
+        self.advance_flush_time(past_end, 0.0);
+        self.clock.kick_armed = true;
+        self.clock.timer_due = false;
+    }
+
+    /// Step generation advances; the toolhead flushes its lookahead when step generation reaches the end of
+    /// the planned moves (a "runout").
+    fn advance_flush_time(&mut self, want_flush_time: f64, want_step_gen_time: f64) {
+        let flush_time = want_flush_time
+            .max(self.clock.last_flush_time)
+            .max(want_step_gen_time - STEPCOMPRESS_FLUSH_TIME);
+        let step_gen_time = want_step_gen_time.max(self.clock.last_step_gen_time).max(flush_time);
+        if !self.need_prime && step_gen_time >= self.print_time - self.config.kin_flush_delay - 0.001 {
+            self.flush_lookahead();
+        }
+        self.clock.last_flush_time = flush_time;
+        self.clock.last_step_gen_time = step_gen_time;
+    }
+
+    /// Motion up to `end_time` was queued for step generation.
+    fn note_motion_queued(&mut self, end_time: f64) {
+        let t = end_time + self.config.kin_flush_delay;
+        self.clock.need_step_gen_time = self.clock.need_step_gen_time.max(t);
+        self.clock.need_flush_time = self.clock.need_flush_time.max(t);
+        if self.clock.kick_armed {
+            self.clock.kick_armed = false;
+            self.clock.timer_due = true;
+        }
+    }
+
+    /// Print time of the first move after the queue ran empty: not before the start buffer, and not before
+    /// step generation can restart.
+    fn calc_print_time(&mut self) {
+        let kin_time = MIN_KIN_TIME.max(self.clock.last_step_gen_time) + self.config.kin_flush_delay;
+        let min_print_time = self.config.buffer_time_start.max(kin_time);
+        if min_print_time > self.print_time {
+            self.print_time = min_print_time;
+        }
+    }
+
+    fn process_lookahead(&mut self, lazy: bool) {
+        let mut moves = std::mem::take(&mut self.flushed);
+        self.lookahead.flush(lazy, &mut moves);
+        if !moves.is_empty() {
+            if self.need_prime {
+                self.need_prime = false;
+                self.calc_print_time();
+            }
+            let mut next_move_time = self.print_time;
+            for mv in &moves {
+                self.emit(next_move_time, mv);
+                next_move_time = next_move_time + mv.plan.accel_t + mv.plan.cruise_t + mv.plan.decel_t;
+            }
+            self.print_time = self.print_time.max(next_move_time);
+            self.note_motion_queued(next_move_time);
+            self.sink.flush(self.print_time);
+        }
+        moves.clear();
+        self.flushed = moves;
+    }
+
+    fn emit(&mut self, print_time: f64, mv: &Move) {
+        let plan = mv.plan;
+        if mv.is_kinematic {
+            self.sink.append(
+                Queue::Toolhead,
+                &TrapezoidMove {
+                    print_time,
+                    accel_t: plan.accel_t,
+                    cruise_t: plan.cruise_t,
+                    decel_t: plan.decel_t,
+                    start_pos: [mv.start_pos[0], mv.start_pos[1], mv.start_pos[2]],
+                    axes_r: mv.direction(),
+                    start_v: plan.start_v,
+                    cruise_v: plan.cruise_v,
+                    accel: mv.accel,
+                },
+            );
+        }
+        if mv.axes_d[3] != 0.0 {
+            let e_ratio = mv.axes_r[3];
+            // The y component flags moves where pressure advance could apply (extruding while moving in XY).
+            let pressure_advance_flag = e_ratio > 0.0 && (mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0);
+            self.sink.append(
+                Queue::Extruder,
+                &TrapezoidMove {
+                    print_time,
+                    accel_t: plan.accel_t,
+                    cruise_t: plan.cruise_t,
+                    decel_t: plan.decel_t,
+                    start_pos: [mv.start_pos[3], 0.0, 0.0],
+                    axes_r: [1.0, if pressure_advance_flag { 1.0 } else { 0.0 }, 0.0],
+                    start_v: plan.start_v * e_ratio,
+                    cruise_v: plan.cruise_v * e_ratio,
+                    accel: mv.accel * e_ratio,
+                },
+            );
+        }
+    }
+}
+
+/// The extruder's limits on a move with E motion: extrude-only moves and retractions are limited to the
+/// extrude-only speed; extruding moves may not exceed the maximum cross-section (tiny amounts excepted).
+fn check_extrusion(extruder: Option<&ExtruderLimits>, mv: &mut Move) -> Result<(), MoveError> {
+    let extruder = extruder.ok_or(MoveError::NoExtruder)?;
+    let e_ratio = mv.axes_r[3];
+    let e_distance = mv.axes_d[3];
+    let moves_xy = mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0;
+    if !moves_xy || e_ratio < 0.0 {
+        if e_distance.abs() > extruder.max_e_distance {
+            return Err(MoveError::ExtrudeOnlyTooLong {
+                distance: e_distance,
+                max: extruder.max_e_distance,
+            });
+        }
+        let inv_ratio = 1.0 / e_ratio.abs();
+        mv.limit_speed(extruder.max_e_velocity * inv_ratio, extruder.max_e_accel * inv_ratio);
+    } else if e_ratio > extruder.max_extrude_ratio
+        && e_distance > extruder.nozzle_diameter * extruder.max_extrude_ratio
+    {
+        return Err(MoveError::OverExtrusion {
+            area: e_ratio * extruder.filament_area,
+            max_area: extruder.max_extrude_ratio * extruder.filament_area,
+        });
+    }
+    Ok(())
+}
+
+/// The extruder's cap on the junction speed²: its velocity may jump by at most the instantaneous corner
+/// velocity.
+fn extruder_junction_v2(extruder: Option<&ExtruderLimits>, prev: &Move, mv: &Move) -> f64 {
+    let diff_r = mv.axes_r[3] - prev.axes_r[3];
+    match extruder {
+        Some(e) if diff_r != 0.0 => {
+            let v = e.instantaneous_corner_velocity / diff_r.abs();
+            v * v
+        }
+        _ => mv.max_cruise_v2,
+    }
+}

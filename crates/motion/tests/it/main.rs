@@ -1,0 +1,3 @@
+//! Integration tests of the planner: Klipper's own planned moves on real G-code (`../shared/golden`).
+
+mod golden;

@@ -1,0 +1,168 @@
+//! Time → clock conversion and Klipper's step+dir+step filter.
+//!
+//! Semantics learnt from Klipper's `stepcompress.c`: the newest step is held back ("pending"). When the next
+//! step goes the other way and is less than the filter time later (compared in ticks), both steps are dropped
+//! and nothing is pending afterwards, so in a chain of reversals the following step starts afresh. A pending
+//! step becomes final when a step in the same direction follows, when a reversal comes late enough, or when the
+//! solver reports that the motor has fully reached the step's position ([`StepFilter::commit`]).
+
+use crate::sink::StepSink;
+
+/// Converts solver times to clocks and filters rapid step+dir+step sequences for one motor.
+#[derive(Debug, Clone)]
+pub struct StepFilter {
+    clock_hz: f64,
+    /// Filter window in ticks (Klipper compares the tick difference, as a double, with `0.000750 · freq`).
+    window_ticks: f64,
+    pending: Option<(u64, bool)>,
+    filtered_pairs: u64,
+    last_emitted: u64,
+}
+
+impl StepFilter {
+    pub fn new(clock_hz: f64, filter_time: f64) -> Self {
+        StepFilter {
+            clock_hz,
+            window_ticks: filter_time * clock_hz,
+            pending: None,
+            filtered_pairs: 0,
+            last_emitted: 0,
+        }
+    }
+
+    /// Round an absolute print time to the nearest clock tick. Times are finite and ≥ 0 by construction;
+    /// the float-to-integer cast truncates, which is `floor` for these non-negative values (and saturates at 0
+    /// otherwise), without a libm call.
+    #[inline]
+    pub fn clock_of(&self, time: f64) -> u64 {
+        (time * self.clock_hz + 0.5) as u64
+    }
+
+    /// A new step at absolute print time `time`.
+    #[inline]
+    pub fn push<S: StepSink + ?Sized>(&mut self, time: f64, dir: bool, sink: &mut S) {
+        let clock = self.clock_of(time);
+        if let Some((pending_clock, pending_dir)) = self.pending {
+            if pending_dir != dir
+                && ((clock as i64 - pending_clock as i64) as f64) < self.window_ticks
+            {
+                self.pending = None;
+                self.filtered_pairs += 1;
+                return;
+            }
+            self.emit(pending_clock, pending_dir, sink);
+        }
+        self.pending = Some((clock, dir));
+    }
+
+    /// The motor reached the pending step's full position: the step can no longer be rolled back.
+    #[inline]
+    pub fn commit<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
+        if let Some((clock, dir)) = self.pending.take() {
+            self.emit(clock, dir, sink);
+        }
+    }
+
+    #[inline]
+    fn emit<S: StepSink + ?Sized>(&mut self, clock: u64, dir: bool, sink: &mut S) {
+        // Rounding can put a step one tick before the previous one only if both are within a tick; keep the
+        // stream monotonic for consumers.
+        let clock = clock.max(self.last_emitted);
+        self.last_emitted = clock;
+        sink.step(clock, dir);
+    }
+
+    /// Number of step pairs removed so far.
+    pub fn filtered_pairs(&self) -> u64 {
+        self.filtered_pairs
+    }
+
+    pub fn clock_hz(&self) -> f64 {
+        self.clock_hz
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sink::Step;
+
+    fn run(steps: &[(f64, bool)]) -> (Vec<Step>, u64) {
+        let mut filter = StepFilter::new(16e6, 750e-6);
+        let mut out = Vec::new();
+        for &(t, dir) in steps {
+            filter.push(t, dir, &mut out);
+        }
+        filter.commit(&mut out);
+        (out, filter.filtered_pairs())
+    }
+
+    #[test]
+    fn clock_rounds_to_nearest_tick() {
+        let filter = StepFilter::new(16e6, 750e-6);
+        assert_eq!(filter.clock_of(1.0), 16_000_000);
+        assert_eq!(filter.clock_of(1.0 + 0.4 / 16e6), 16_000_000);
+        assert_eq!(filter.clock_of(1.0 + 0.6 / 16e6), 16_000_001);
+    }
+
+    #[test]
+    fn quick_reversal_removes_both_steps() {
+        let (out, pairs) = run(&[(1.0, true), (1.0005, false), (1.002, false)]);
+        assert_eq!(
+            out,
+            vec![Step {
+                clock: 16_032_000,
+                dir: false
+            }]
+        );
+        assert_eq!(pairs, 1);
+    }
+
+    #[test]
+    fn slow_reversal_keeps_both_steps() {
+        let (out, pairs) = run(&[(1.0, true), (1.001, false)]);
+        assert_eq!(out.len(), 2);
+        assert_eq!(pairs, 0);
+    }
+
+    #[test]
+    fn window_is_compared_in_ticks() {
+        // 11999 ticks apart is filtered, 12000 is not.
+        let (out, _) = run(&[(1.0, true), (1.0 + 11999.0 / 16e6, false)]);
+        assert!(out.is_empty());
+        let (out, _) = run(&[(1.0, true), (1.0 + 12000.0 / 16e6, false)]);
+        assert_eq!(out.len(), 2);
+    }
+
+    #[test]
+    fn chain_of_reversals_restarts_after_a_removed_pair() {
+        // + - removed, then + becomes pending afresh, then - removes it with the next.
+        let (out, pairs) = run(&[
+            (1.0, true),
+            (1.0001, false),
+            (1.0002, true),
+            (1.0003, false),
+            (1.0004, true),
+        ]);
+        assert_eq!(pairs, 2);
+        assert_eq!(
+            out,
+            vec![Step {
+                clock: 16_006_400,
+                dir: true
+            }]
+        );
+    }
+
+    #[test]
+    fn committed_step_is_not_rolled_back() {
+        let mut filter = StepFilter::new(16e6, 750e-6);
+        let mut out = Vec::new();
+        filter.push(1.0, true, &mut out);
+        filter.commit(&mut out);
+        filter.push(1.0001, false, &mut out);
+        filter.commit(&mut out);
+        assert_eq!(out.len(), 2);
+        assert_eq!(filter.filtered_pairs(), 0);
+    }
+}

@@ -1,0 +1,56 @@
+//! Where generated steps go: the [`StepSink`] trait and simple sinks (vectors, counters, pairs of sinks).
+
+/// One step: MCU clock tick and direction (`true` = the motor position increases).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Step {
+    pub clock: u64,
+    pub dir: bool,
+}
+
+/// Receiver of one motor's final (filtered) steps, in non-decreasing clock order.
+pub trait StepSink {
+    fn step(&mut self, clock: u64, dir: bool);
+}
+
+impl StepSink for Vec<Step> {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        self.push(Step { clock, dir });
+    }
+}
+
+impl<S: StepSink + ?Sized> StepSink for &mut S {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        (**self).step(clock, dir);
+    }
+}
+
+/// Counts steps and keeps the net position change; for benchmarks and quick checks.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CountSink {
+    pub steps: u64,
+    pub net: i64,
+    pub last_clock: u64,
+}
+
+impl StepSink for CountSink {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        self.steps += 1;
+        self.net += if dir { 1 } else { -1 };
+        self.last_clock = clock;
+    }
+}
+
+/// Sends every step to two sinks (e.g. a file writer and statistics).
+#[derive(Debug, Clone, Default)]
+pub struct Tee<A, B>(pub A, pub B);
+
+impl<A: StepSink, B: StepSink> StepSink for Tee<A, B> {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        self.0.step(clock, dir);
+        self.1.step(clock, dir);
+    }
+}

@@ -1,0 +1,275 @@
+//! Cases whose step times follow from a formula, computed here independently of the solver.
+
+use kinematics::Kinematics;
+use stepgen::{ExtruderSpec, Step, StepError, StepGenConfig, StepGenerator};
+use trapq::{Piece, Queue, TrapezoidMove};
+
+use crate::machines;
+
+const HZ: f64 = 16e6;
+
+fn cruise(print_time: f64, duration: f64, start: [f64; 3], dir: [f64; 3], v: f64) -> TrapezoidMove {
+    TrapezoidMove {
+        print_time,
+        accel_t: 0.0,
+        cruise_t: duration,
+        decel_t: 0.0,
+        start_pos: start,
+        axes_r: dir,
+        start_v: v,
+        cruise_v: v,
+        accel: 0.0,
+    }
+}
+
+fn run(
+    kin: &dyn Kinematics,
+    start: [f64; 3],
+    moves: &[(Queue, TrapezoidMove)],
+) -> Result<Vec<Vec<Step>>, StepError> {
+    let extruder = ExtruderSpec {
+        name: "extruder".into(),
+        step_distance: 0.01,
+        start_position: 0.0,
+    };
+    let mut generator = StepGenerator::new(kin, start, Some(extruder), StepGenConfig::default())?;
+    let mut sinks = vec![Vec::new(); generator.motor_count()];
+    generator.run_moves(moves.iter().copied(), 64, &mut sinks)?;
+    Ok(sinks)
+}
+
+fn clock(t: f64) -> u64 {
+    (t * HZ).round() as u64
+}
+
+fn assert_close(ours: &[Step], expected: &[(f64, bool)]) {
+    assert_eq!(ours.len(), expected.len(), "step count");
+    for (i, (step, &(t, dir))) in ours.iter().zip(expected).enumerate() {
+        assert_eq!(step.dir, dir, "direction of step {i}");
+        let diff = step.clock as i64 - clock(t) as i64;
+        assert!(
+            diff.abs() <= 1,
+            "step {i}: clock {} expected {} (t {t})",
+            step.clock,
+            clock(t)
+        );
+    }
+}
+
+#[test]
+fn constant_velocity_line_steps_at_predictable_times() {
+    // X from 0.004 (off the step grid) at 10 mm/s for 1 s; step 0.0125 mm: level k at 0.004 + (k + ½)·step.
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let mv = cruise(1.0, 1.0, [0.004, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0);
+    let steps = run(kin.as_ref(), [0.004, 0.0, 0.0], &[(Queue::Toolhead, mv)]).expect("steps");
+    let expected: Vec<(f64, bool)> = (0..800)
+        .map(|k| (1.0 + (k as f64 + 0.5) * 0.0125 / 10.0, true))
+        .collect();
+    assert_close(&steps[0], &expected);
+    // Exactly on whole ticks: 10000 + 20000·k.
+    assert_eq!(steps[0][3].clock, 16_000_000 + 10_000 + 3 * 20_000);
+    assert!(steps[1].is_empty() && steps[2].is_empty() && steps[3].is_empty());
+}
+
+#[test]
+fn accelerating_from_rest_follows_square_root_law() {
+    // d = a t²/2 along −Y with a = 1000 mm/s² for 0.1 s (5 mm).
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let mv = TrapezoidMove {
+        print_time: 0.5,
+        accel_t: 0.1,
+        cruise_t: 0.0,
+        decel_t: 0.0,
+        start_pos: [0.0, 0.0, 0.0],
+        axes_r: [0.0, -1.0, 0.0],
+        start_v: 0.0,
+        cruise_v: 100.0,
+        accel: 1000.0,
+    };
+    let steps = run(kin.as_ref(), [0.0; 3], &[(Queue::Toolhead, mv)]).expect("steps");
+    let expected: Vec<(f64, bool)> = (0..400)
+        .map(|k| {
+            (
+                0.5 + (2.0 * (k as f64 + 0.5) * 0.0125 / 1000.0).sqrt(),
+                false,
+            )
+        })
+        .collect();
+    assert_close(&steps[1], &expected);
+}
+
+#[test]
+fn extruder_retraction_steps_backwards() {
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let mv = cruise(2.0, 0.1, [3.0, 0.0, 0.0], [1.0, 0.0, 0.0], -5.0);
+    let steps = run(kin.as_ref(), [0.0; 3], &[(Queue::Extruder, mv)]).expect("steps");
+    // The extruder starts at 0 and its queue starts at E = 3.0: the 300 steps of that jump happen at once
+    // (all up). Then E goes from 3.0 down to 2.5 at 5 mm/s: 50 steps down, level k at 2.995 − k·0.01.
+    let down: Vec<&Step> = steps[3].iter().filter(|s| !s.dir).collect();
+    assert_eq!(steps[3].iter().filter(|s| s.dir).count(), 300);
+    assert_eq!(down.len(), 50);
+    for (k, step) in down.iter().enumerate() {
+        let t = 2.0 + (0.005 + k as f64 * 0.01) / 5.0;
+        assert!(
+            (step.clock as i64 - clock(t) as i64).abs() <= 1,
+            "retraction step {k}"
+        );
+    }
+}
+
+#[test]
+fn polar_arm_radial_line_is_linear_and_bed_still() {
+    let kin = machines::polar(std::f64::consts::TAU / 16000.0, 0.0125, 0.0025);
+    // From (100, 0) outward to (110, 0) at 20 mm/s.
+    let mv = cruise(1.0, 0.5, [100.0, 0.0, 0.0], [1.0, 0.0, 0.0], 20.0);
+    let steps = run(kin.as_ref(), [100.0, 0.0, 0.0], &[(Queue::Toolhead, mv)]).expect("steps");
+    assert!(steps[0].is_empty(), "bed must not move on a radial line");
+    let expected: Vec<(f64, bool)> = (0..800)
+        .map(|k| (1.0 + (k as f64 + 0.5) * 0.0125 / 20.0, true))
+        .collect();
+    assert_close(&steps[1], &expected);
+}
+
+#[test]
+fn polar_bed_on_a_straight_line_past_the_centre() {
+    // Line y = 10 from x = 50 to x = −50 at 20 mm/s: the bed angle goes from atan2(10, 50) up to
+    // atan2(10, −50); it reaches level θ where x = 10·cos θ / sin θ, at t = (50 − x)/20.
+    let step = std::f64::consts::TAU / 16000.0;
+    let kin = machines::polar(step, 0.0125, 0.0025);
+    let mv = cruise(1.0, 5.0, [50.0, 10.0, 0.0], [-1.0, 0.0, 0.0], 20.0);
+    let steps = run(kin.as_ref(), [50.0, 10.0, 0.0], &[(Queue::Toolhead, mv)]).expect("steps");
+    let (theta0, theta1) = (10f64.atan2(50.0), 10f64.atan2(-50.0));
+    let count = ((theta1 - theta0) / step).round() as usize;
+    let expected: Vec<(f64, bool)> = (0..count)
+        .map(|k| {
+            let level = theta0 + (k as f64 + 0.5) * step;
+            let x = 10.0 * level.cos() / level.sin();
+            (1.0 + (50.0 - x) / 20.0, true)
+        })
+        .collect();
+    assert_close(&steps[0], &expected);
+    // The arm goes in (50.99 → 10) and out again: a reversal at the closest approach, t = 3.5 s.
+    let arm = &steps[1];
+    let turn = arm.iter().position(|s| s.dir).expect("arm turns round");
+    assert!(arm[..turn].iter().all(|s| !s.dir) && arm[turn..].iter().all(|s| s.dir));
+    assert!(arm[turn - 1].clock < clock(3.5) && arm[turn].clock > clock(3.5));
+}
+
+#[test]
+fn move_through_the_polar_centre_is_an_error() {
+    let kin = machines::polar(std::f64::consts::TAU / 16000.0, 0.0125, 0.0025);
+    let mv = cruise(1.0, 1.0, [10.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 20.0);
+    match run(kin.as_ref(), [10.0, 0.0, 0.0], &[(Queue::Toolhead, mv)]) {
+        Err(StepError::ThroughCentre { motor, .. }) => assert_eq!(motor, "stepper_bed"),
+        other => panic!("expected ThroughCentre, got {other:?}"),
+    }
+}
+
+#[test]
+fn non_finite_piece_is_an_error_not_a_nan() {
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let mv = cruise(1.0, f64::NAN, [0.0; 3], [1.0, 0.0, 0.0], 10.0);
+    let result = run(kin.as_ref(), [0.0; 3], &[(Queue::Toolhead, mv)]);
+    assert!(
+        matches!(result, Err(StepError::InvalidPiece { .. })),
+        "{result:?}"
+    );
+}
+
+#[test]
+fn scara_joint_steps_are_exact_crossings() {
+    // A general (non closed-form) motor: every step clock must bracket the crossing of its level,
+    // evaluated here straight from the kinematics.
+    let step = std::f64::consts::TAU / 9600.0;
+    let kin = machines::scara_fekt(step, step, 0.0025, 100.0, 100.0, [0.0, 0.0], 3.0);
+    let start = [-60.0, 120.0, 0.0];
+    let dir = [0.8, 0.6, 0.0];
+    let mv = TrapezoidMove {
+        print_time: 1.0,
+        accel_t: 0.05,
+        cruise_t: 0.5,
+        decel_t: 0.05,
+        start_pos: start,
+        axes_r: dir,
+        start_v: 0.0,
+        cruise_v: 100.0,
+        accel: 2000.0,
+    };
+    let pieces: Vec<Piece> = mv.pieces().collect();
+    let steps = run(kin.as_ref(), start, &[(Queue::Toolhead, mv)]).expect("steps");
+    let mut p0 = [0.0; 3];
+    kin.inverse(start, &mut p0).expect("reachable");
+    for motor in 0..2 {
+        assert!(steps[motor].len() > 100, "motor {motor} should step");
+        let mut net = 0i64;
+        for s in &steps[motor] {
+            let level = p0[motor] + (net as f64 + if s.dir { 0.5 } else { -0.5 }) * step;
+            let at = |t: f64| {
+                let piece = pieces
+                    .iter()
+                    .rev()
+                    .find(|p| p.print_time <= t)
+                    .expect("piece");
+                let mut m = [0.0; 3];
+                kin.inverse(
+                    piece.position((t - piece.print_time).min(piece.duration)),
+                    &mut m,
+                )
+                .expect("pose");
+                m[motor] - level
+            };
+            let t = s.clock as f64 / HZ;
+            let (before, after) = (at(t - 0.5 / HZ), at(t + 0.5 / HZ));
+            assert!(
+                before * after <= 0.0,
+                "motor {motor} step at {} does not bracket its level",
+                s.clock
+            );
+            net += if s.dir { 1 } else { -1 };
+        }
+    }
+}
+
+#[test]
+fn output_is_identical_whatever_the_thread_count() {
+    let kin = machines::polar(std::f64::consts::TAU / 16000.0, 0.0125, 0.0025);
+    let moves: Vec<(Queue, TrapezoidMove)> = (0..40)
+        .flat_map(|i| {
+            let a = i as f64 * 0.7;
+            let start = [30.0 * a.cos(), 30.0 * a.sin(), 0.2];
+            let next = [30.0 * (a + 0.7).cos(), 30.0 * (a + 0.7).sin(), 0.2];
+            let d = [next[0] - start[0], next[1] - start[1], 0.0];
+            let len = d[0].hypot(d[1]);
+            let mv = cruise(
+                1.0 + i as f64 * len / 50.0,
+                len / 50.0,
+                start,
+                [d[0] / len, d[1] / len, 0.0],
+                50.0,
+            );
+            let e = cruise(
+                mv.print_time,
+                mv.cruise_t,
+                [i as f64 * 0.5, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                0.5 / mv.cruise_t,
+            );
+            [(Queue::Toolhead, mv), (Queue::Extruder, e)]
+        })
+        .collect();
+    let start = moves[0].1.start_pos;
+    let in_pool = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| run(kin.as_ref(), start, &moves).expect("steps"))
+    };
+    let one = in_pool(1);
+    assert!(
+        [0, 1, 3].iter().all(|&m| !one[m].is_empty()),
+        "bed, arm and extruder step"
+    );
+    assert_eq!(one, in_pool(2));
+    assert_eq!(one, in_pool(4));
+}

@@ -17,7 +17,10 @@
 //! placed: `dx = −(r⁺ + r⁻)/2`, `h = (r⁺ − r⁻)/2`, `θ⁻ − θ⁺ = π − 2·atan(dy/h)`. The per-magnet pairs are
 //! combined robustly (median screen, then mean and covariance). The magnet map (each magnet in the bed frame
 //! with the fitted offsets) gets a robust geometric circle fit, which gives the ring's own eccentricity and
-//! per-magnet residuals for the plot. The arm must reach `−ρ` (`arm_min`).
+//! per-magnet residuals for the plot. The arm must reach `−ρ` (`arm_min`); a machine whose arm passes the
+//! centre only a little can use a small inner ring (e.g. 4 magnets at 10 mm, tested), and one whose arm
+//! cannot pass the centre at all cannot separate `dx` from the ring radius nor measure `dy` with this
+//! sensor: the scan refuses such parameters instead of guessing.
 
 use crate::circle::{self, CircleFit, Point};
 use serde::{Deserialize, Serialize};

@@ -5,6 +5,7 @@ mod cmd;
 mod diag;
 mod input;
 mod output;
+mod testprint;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -26,6 +27,8 @@ enum Command {
     Run(cmd::run::RunArgs),
     /// Check a print against a machine without generating steps: reach, limits, slow moves.
     Check(cmd::run::CheckArgs),
+    /// Draw where the machine reaches and its resolution (mm per motor step) across the bed.
+    Workspace(cmd::workspace::Args),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +38,7 @@ fn main() -> ExitCode {
         Command::Stats(args) => cmd::stats::run(args),
         Command::Run(args) => cmd::run::run(args),
         Command::Check(args) => cmd::run::check(args),
+        Command::Workspace(args) => cmd::workspace::run(args),
     };
     match result {
         Ok(code) => code,

@@ -10,10 +10,15 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 #[allow(dead_code)]
 mod machines;
 
-const FILES: [&str; 2] = ["simplify3d-4.1.2.gcode", "prusaslicer-2.7.4_spiral-vase.gcode"];
+const FILES: [&str; 2] = [
+    "simplify3d-4.1.2.gcode",
+    "prusaslicer-2.7.4_spiral-vase.gcode",
+];
 
 fn corpus(name: &str) -> Option<Vec<u8>> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus").join(name);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/corpus")
+        .join(name);
     std::fs::read(path).ok()
 }
 
@@ -39,13 +44,17 @@ fn bench(c: &mut Criterion) {
             eprintln!("skipping {name}: ../shared/corpus is absent");
             continue;
         };
-        let options = ConvertOptions { translate: centring(&text), ..ConvertOptions::default() };
+        let options = ConvertOptions {
+            translate: centring(&text),
+            ..ConvertOptions::default()
+        };
         let map = AxisMap::motors(machines::polar(), Target::Cylindrical).expect("polar map");
         group.throughput(Throughput::Bytes(text.len() as u64));
         group.bench_function(name, |b| {
             b.iter(|| {
                 let out = Vec::with_capacity(text.len() * 10);
-                let mut converter = Converter::new(map.clone(), options.clone(), out).expect("converter");
+                let mut converter =
+                    Converter::new(map.clone(), options.clone(), out).expect("converter");
                 convert_gcode(&text[..], name, &mut converter).expect("conversion");
                 converter.finish().expect("finish")
             })

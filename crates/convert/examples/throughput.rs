@@ -24,11 +24,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let translate = [-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0];
-    let options = ConvertOptions { translate, ..ConvertOptions::default() };
+    let options = ConvertOptions {
+        translate,
+        ..ConvertOptions::default()
+    };
     let map = AxisMap::motors(machines::polar(), Target::Cylindrical)?;
     let mut written = 0;
     for _ in 0..repeats {
-        let mut converter = Converter::new(map.clone(), options.clone(), Vec::with_capacity(text.len() * 10))?;
+        let mut converter = Converter::new(
+            map.clone(),
+            options.clone(),
+            Vec::with_capacity(text.len() * 10),
+        )?;
         convert_gcode(&text[..], &path, &mut converter)?;
         let (out, stats) = converter.finish()?;
         written = out.len();
@@ -36,6 +43,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             println!("{stats:?}");
         }
     }
-    println!("{} bytes in, {written} bytes out, {repeats} times", text.len());
+    println!(
+        "{} bytes in, {written} bytes out, {repeats} times",
+        text.len()
+    );
     Ok(())
 }

@@ -17,10 +17,20 @@ const MAX_MOTORS: usize = 6;
 #[derive(Debug, Clone)]
 pub enum AxisMap {
     /// Output = two motors of `kin`.
-    Motors { kin: Arc<dyn Kinematics>, planar: [usize; 2], z: Option<usize>, count: usize },
+    Motors {
+        kin: Arc<dyn Kinematics>,
+        planar: [usize; 2],
+        z: Option<usize>,
+        count: usize,
+    },
     /// Output = Cartesian XY for a firmware that believes in `ideal` while the machine is `real`:
     /// `xy' = ideal.forward(real.inverse(p))`.
-    Corrected { real: Arc<dyn Kinematics>, ideal: Arc<dyn Kinematics>, z: Option<usize>, count: usize },
+    Corrected {
+        real: Arc<dyn Kinematics>,
+        ideal: Arc<dyn Kinematics>,
+        z: Option<usize>,
+        count: usize,
+    },
 }
 
 impl AxisMap {
@@ -33,20 +43,39 @@ impl AxisMap {
                 let mut others = (0..count).filter(|&i| Some(i) != z);
                 match (others.next(), others.next()) {
                     (Some(a), Some(b)) => [a, b],
-                    _ => return Err(ConvertError::Setup("the machine has fewer than two planar motors".into())),
+                    _ => {
+                        return Err(ConvertError::Setup(
+                            "the machine has fewer than two planar motors".into(),
+                        ));
+                    }
                 }
             }
         };
-        Ok(AxisMap::Motors { kin, planar, z, count })
+        Ok(AxisMap::Motors {
+            kin,
+            planar,
+            z,
+            count,
+        })
     }
 
-    pub fn corrected(real: Arc<dyn Kinematics>, ideal: Arc<dyn Kinematics>) -> Result<AxisMap, ConvertError> {
+    pub fn corrected(
+        real: Arc<dyn Kinematics>,
+        ideal: Arc<dyn Kinematics>,
+    ) -> Result<AxisMap, ConvertError> {
         let count = motor_count(real.as_ref())?;
         if motor_count(ideal.as_ref())? != count {
-            return Err(ConvertError::Setup("real and ideal machines have different motors".into()));
+            return Err(ConvertError::Setup(
+                "real and ideal machines have different motors".into(),
+            ));
         }
         let z = z_motor(real.as_ref());
-        Ok(AxisMap::Corrected { real, ideal, z, count })
+        Ok(AxisMap::Corrected {
+            real,
+            ideal,
+            z,
+            count,
+        })
     }
 
     /// Units of the two output axes.
@@ -63,7 +92,9 @@ impl AxisMap {
     /// Output axes for toolhead position `p`, angles chosen nearest `near` (unwrapped).
     pub fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
         match self {
-            AxisMap::Motors { kin, planar, count, .. } => {
+            AxisMap::Motors {
+                kin, planar, count, ..
+            } => {
                 let mut prev = [0.0; MAX_MOTORS];
                 prev[planar[0]] = near[0];
                 prev[planar[1]] = near[1];
@@ -71,14 +102,19 @@ impl AxisMap {
                 kin.inverse_near(p, &prev[..*count], &mut out[..*count])?;
                 Ok([out[planar[0]], out[planar[1]]])
             }
-            AxisMap::Corrected { real, ideal, count, .. } => {
+            AxisMap::Corrected {
+                real, ideal, count, ..
+            } => {
                 let mut motors = [0.0; MAX_MOTORS];
                 real.inverse(p, &mut motors[..*count])?;
                 let xy = ideal.forward(&motors[..*count])?;
                 // The ideal firmware must choose the same motor positions for xy' (e.g. no negative radius).
                 let mut back = [0.0; MAX_MOTORS];
                 ideal.inverse_near(xy, &motors[..*count], &mut back[..*count])?;
-                let same = motors[..*count].iter().zip(&back[..*count]).all(|(a, b)| (a - b).abs() <= 1e-9 * (1.0 + a.abs()));
+                let same = motors[..*count]
+                    .iter()
+                    .zip(&back[..*count])
+                    .all(|(a, b)| (a - b).abs() <= 1e-9 * (1.0 + a.abs()));
                 if !same {
                     return Err(ReachError::BranchImpossible { x: p[0], y: p[1] });
                 }
@@ -90,7 +126,12 @@ impl AxisMap {
     /// Toolhead XY reached when the output axes are at `a` and Z at `z`.
     pub fn from_axes(&self, a: [f64; 2], z: f64) -> Result<[f64; 2], ReachError> {
         match self {
-            AxisMap::Motors { kin, planar, z: z_index, count } => {
+            AxisMap::Motors {
+                kin,
+                planar,
+                z: z_index,
+                count,
+            } => {
                 let mut m = [0.0; MAX_MOTORS];
                 m[planar[0]] = a[0];
                 m[planar[1]] = a[1];
@@ -100,7 +141,9 @@ impl AxisMap {
                 let p = kin.forward(&m[..*count])?;
                 Ok([p[0], p[1]])
             }
-            AxisMap::Corrected { real, ideal, count, .. } => {
+            AxisMap::Corrected {
+                real, ideal, count, ..
+            } => {
                 let mut m = [0.0; MAX_MOTORS];
                 ideal.inverse([a[0], a[1], z], &mut m[..*count])?;
                 let p = real.forward(&m[..*count])?;
@@ -140,7 +183,9 @@ fn motor_count(kin: &dyn Kinematics) -> Result<usize, ConvertError> {
     if (2..=MAX_MOTORS).contains(&n) {
         Ok(n)
     } else {
-        Err(ConvertError::Setup(format!("unsupported number of motors: {n}")))
+        Err(ConvertError::Setup(format!(
+            "unsupported number of motors: {n}"
+        )))
     }
 }
 
@@ -164,7 +209,11 @@ fn cylindrical_motors(kin: &dyn Kinematics) -> Result<[usize; 2], ConvertError> 
     let radius = by_name("arm").or_else(|| by_map(false));
     let angle = by_name("bed").or_else(|| by_map(true));
     match (radius, angle) {
-        (Some(r), Some(a)) if r != a && motors[r].unit == MotorUnit::Mm && motors[a].unit == MotorUnit::Rad => Ok([r, a]),
+        (Some(r), Some(a))
+            if r != a && motors[r].unit == MotorUnit::Mm && motors[a].unit == MotorUnit::Rad =>
+        {
+            Ok([r, a])
+        }
         _ => Err(ConvertError::Setup(format!(
             "cylindrical output needs a polar machine (arm and bed motors); `{}` has none",
             kin.name()

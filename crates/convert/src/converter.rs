@@ -3,9 +3,10 @@
 //! Memory is bounded by the longest single move's segment list; nothing else grows with the input.
 //!
 //! Output conventions:
-//! - Axes are absolute (`G90` in the header); planar axes are the two output axes (see [`Target`]), Z is
-//!   Cartesian Z, E follows [`Extrusion`] (`M83` or `M82` in the header). Input `G90/G91/M82/M83` lines are
-//!   kept as comments (the conversion already applied them); `M220/M221` likewise (already in the feed / E).
+//! - Axes are absolute (`G90` in the header), in mm; planar axes are the two output axes (see
+//!   [`crate::Target`]), Z is Cartesian Z, E follows [`Extrusion`] (`M83` or `M82` in the header). Input
+//!   `G90/G91/M82/M83/G20/G21` lines are kept as comments (the interpreter already applied them);
+//!   `M220/M221` likewise (already in the feed and E).
 //! - Every converted motion line is `G1` (so every line's `F` has the same meaning); the one exception is the
 //!   first move after the start or a `G28`, whose start point is unknown: it is written as a single `G0`
 //!   without `F` (a positioning move; its path is not defined by the input either).
@@ -22,12 +23,15 @@ use kinematics::{MotorUnit, ReachError, SegmentError};
 use crate::axes::AxisMap;
 use crate::error::ConvertError;
 use crate::format::{feed_decimals, push_units, push_word, scale, to_units};
-use crate::options::{AngleUnit, ConvertOptions, Extrusion, FeedMode, Segmentation};
+use crate::options::{ConvertOptions, Extrusion, FeedMode, Segmentation};
 use crate::path::Path;
 use crate::segment::{Breakpoint, CutError, cut_adaptive, cut_fixed};
 
 /// Distance (mm) kept from the exact polar centre, where the bed angle is undefined.
 const CENTRE_GAP: f64 = 1e-7;
+/// A line passing this close (mm) to the centre is treated as passing through it: its bed angle would
+/// swing by half a turn within a few of these, far below any tolerance.
+const CENTRE_SNAP: f64 = 1e-6;
 /// Share of the tolerance the probe check may use (the rest covers probe sampling and rounding).
 const PROBE_MARGIN: f64 = 0.9;
 
@@ -87,19 +91,18 @@ impl<W: Write> Converter<W> {
         validate(&options)?;
         let units = map.units();
         let rotary = units.map(|u| u == MotorUnit::Rad);
-        let angle_scale = match options.angle_unit {
-            AngleUnit::Degrees => 180.0 / std::f64::consts::PI,
-            AngleUnit::Radians => 1.0,
-        };
-        let d = options.decimals;
-        let axis_scale = rotary.map(|r| if r { angle_scale } else { 1.0 });
-        let axis_decimals = rotary.map(|r| if r { d.angle } else { d.linear });
+        let axis_scale = units.map(|u| options.axis_scale(u));
+        let axis_decimals = units.map(|u| options.axis_decimals(u));
         let target_deviation = match options.segmentation {
-            Segmentation::Adaptive { tolerance } => tolerance * PROBE_MARGIN - rounding_budget(rotary, axis_scale, axis_decimals),
+            Segmentation::Adaptive { tolerance } => {
+                tolerance * PROBE_MARGIN - options.rounding_budget(units)
+            }
             Segmentation::Fixed { .. } => f64::INFINITY,
         };
         if target_deviation <= 0.0 {
-            return Err(ConvertError::Options("tolerance is below the output's rounding: raise decimals".into()));
+            return Err(ConvertError::Options(
+                "tolerance is below the output's rounding: raise decimals".into(),
+            ));
         }
         Ok(Converter {
             map,
@@ -159,7 +162,10 @@ impl<W: Write> Converter<W> {
             Extrusion::Relative => "M83",
             Extrusion::Absolute => "M82",
         };
-        writeln!(self.out, "; converted by jointspace: motor-space output, absolute axes")?;
+        writeln!(
+            self.out,
+            "; converted by jointspace: motor-space output, absolute axes"
+        )?;
         writeln!(self.out, "G90\n{e_mode}")?;
         if self.options.feed == FeedMode::InverseTime {
             writeln!(self.out, "G93")?;
@@ -183,7 +189,7 @@ impl<W: Write> Converter<W> {
                 self.write_note(raw, "already applied to the converted moves")
             }
             Command::Other { name } if is_mode_command(name) => {
-                self.write_note(raw, "already applied: the output uses absolute axes")
+                self.write_note(raw, "already applied: the output uses mm and absolute axes")
             }
             _ => Ok(()),
         }
@@ -206,7 +212,10 @@ impl<W: Write> Converter<W> {
 
     fn set_position(&mut self, raw: &str, position: &[Option<f64>; 4]) -> Result<(), ConvertError> {
         if position[..3].iter().any(Option::is_some) {
-            self.write_note(raw, "coordinates renamed; the output is in machine coordinates")?;
+            self.write_note(
+                raw,
+                "coordinates renamed; the output is in machine coordinates",
+            )?;
         }
         let Some(e) = position[3] else { return Ok(()) };
         let decimals = self.options.decimals.extrusion;
@@ -229,7 +238,10 @@ impl<W: Write> Converter<W> {
             return self.positioning_move(span, target);
         };
         self.stats.moves += 1;
-        let path = Path::Line { from: xyz(start), to: xyz(target) };
+        let path = Path::Line {
+            from: xyz(start),
+            to: xyz(target),
+        };
         self.position = Some(target);
         if path.xy_length() == 0.0 {
             check_feed(span, m.feed)?;
@@ -274,19 +286,28 @@ impl<W: Write> Converter<W> {
 
     /// Where (as a path fraction) a straight move passes exactly through the polar centre.
     fn line_crossing(&self, span: Span, path: &Path) -> Result<Option<f64>, ConvertError> {
-        let Path::Line { from, to } = *path else { return Ok(None) };
+        let Path::Line { from, to } = *path else {
+            return Ok(None);
+        };
         match self.map.check_line(from, to) {
             Ok(()) => {}
-            Err(SegmentError { t, reason: ReachError::AtCentre { .. } }) => return Ok(Some(t.clamp(0.0, 1.0))),
-            Err(SegmentError { reason, .. }) => return Err(ConvertError::Unreachable { span, reason }),
+            Err(SegmentError {
+                t,
+                reason: ReachError::AtCentre { .. },
+            }) => return Ok(Some(t.clamp(0.0, 1.0))),
+            Err(SegmentError { reason, .. }) => {
+                return Err(ConvertError::Unreachable { span, reason });
+            }
         }
         // Kinematics that accept the centre on a segment: find it from the map's declared centre.
-        let Some(c) = self.map.centre() else { return Ok(None) };
+        let Some(c) = self.map.centre() else {
+            return Ok(None);
+        };
         let d = [to[0] - from[0], to[1] - from[1]];
         let len2 = d[0] * d[0] + d[1] * d[1];
         let t = (((c[0] - from[0]) * d[0] + (c[1] - from[1]) * d[1]) / len2).clamp(0.0, 1.0);
         let miss = (from[0] + d[0] * t - c[0]).hypot(from[1] + d[1] * t - c[1]);
-        Ok((miss <= CENTRE_GAP * 1e-3).then_some(t))
+        Ok((miss <= CENTRE_SNAP).then_some(t))
     }
 
     fn arc_meets_centre(&self, path: &Path) -> bool {
@@ -330,8 +351,14 @@ impl<W: Write> Converter<W> {
 
     /// Rotate in place at the centre to the axes of `path.point(s)`, the nearest equivalent angle.
     fn flip(&mut self, span: Span, path: &Path, s: f64) -> Result<(), ConvertError> {
-        let to = self.map.to_axes(path.point(s), self.axes).map_err(|reason| ConvertError::Unreachable { span, reason })?;
-        let turn = (0..2).filter(|&i| self.rotary[i]).map(|i| (to[i] - self.axes[i]).abs()).fold(0.0, f64::max);
+        let to = self
+            .map
+            .to_axes(path.point(s), self.axes)
+            .map_err(|reason| ConvertError::Unreachable { span, reason })?;
+        let turn = (0..2)
+            .filter(|&i| self.rotary[i])
+            .map(|i| (to[i] - self.axes[i]).abs())
+            .fold(0.0, f64::max);
         self.axes = to;
         self.at_centre = false;
         let time = turn / self.options.flip_speed;
@@ -362,12 +389,24 @@ impl<W: Write> Converter<W> {
         cuts.clear();
         let from = (s0, self.axes);
         let result = match self.options.segmentation {
-            Segmentation::Adaptive { .. } => cut_adaptive(path, &self.map, from, s1, self.target_deviation, &mut cuts),
-            Segmentation::Fixed { segments_per_second, min_length } => {
+            Segmentation::Adaptive { .. } => {
+                cut_adaptive(path, &self.map, from, s1, self.target_deviation, &mut cuts)
+            }
+            Segmentation::Fixed {
+                segments_per_second,
+                min_length,
+            } => {
                 let piece = length * (s1 - s0);
                 let by_time = (piece / feed * segments_per_second).round();
                 let by_length = (piece / min_length).floor().max(1.0);
-                cut_fixed(path, &self.map, from, s1, by_time.clamp(1.0, by_length) as usize, &mut cuts)
+                cut_fixed(
+                    path,
+                    &self.map,
+                    from,
+                    s1,
+                    by_time.clamp(1.0, by_length) as usize,
+                    &mut cuts,
+                )
             }
         };
         if let Err(e) = result {
@@ -379,9 +418,18 @@ impl<W: Write> Converter<W> {
         for cut in &cuts {
             let p = path.point(cut.s);
             if matches!(path, Path::Arc { .. }) {
-                self.map.check_line(path.point(s_prev), p).map_err(|err| ConvertError::Unreachable { span, reason: err.reason })?;
+                self.map.check_line(path.point(s_prev), p).map_err(|err| {
+                    ConvertError::Unreachable {
+                        span,
+                        reason: err.reason,
+                    }
+                })?;
             }
-            let e_units = if last && cut.s >= s1 { to_units(e.1, decimals) } else { to_units(e.0 + (e.1 - e.0) * cut.s, decimals) };
+            let e_units = if last && cut.s >= s1 {
+                to_units(e.1, decimals)
+            } else {
+                to_units(e.0 + (e.1 - e.0) * cut.s, decimals)
+            };
             let time = length * (cut.s - s_prev) / feed;
             self.axes = cut.axes;
             if self.write_motion(cut.axes, p[2], e_units, time, feed)? {
@@ -398,13 +446,23 @@ impl<W: Write> Converter<W> {
             CutError::Reach(reason) => ConvertError::Unreachable { span, reason },
             CutError::NoConvergence { s } => {
                 let p = path.point(s);
-                ConvertError::NoConvergence { span, x: p[0], y: p[1], tolerance: self.target_deviation / PROBE_MARGIN }
+                ConvertError::NoConvergence {
+                    span,
+                    x: p[0],
+                    y: p[1],
+                    tolerance: self.target_deviation / PROBE_MARGIN,
+                }
             }
         }
     }
 
     /// A move without XY motion (Z only, E only): one line, planar axes unchanged.
-    fn write_in_place(&mut self, start: [f64; 4], target: [f64; 4], feed: f64) -> Result<(), ConvertError> {
+    fn write_in_place(
+        &mut self,
+        start: [f64; 4],
+        target: [f64; 4],
+        feed: f64,
+    ) -> Result<(), ConvertError> {
         let dz = target[2] - start[2];
         let de = target[3] - start[3];
         let distance = if dz != 0.0 { dz.abs() } else { de.abs() };
@@ -425,7 +483,8 @@ impl<W: Write> Converter<W> {
             Ok(a) => a,
             Err(ReachError::AtCentre { .. }) => {
                 self.at_centre = true;
-                self.map.to_axes([p[0] + CENTRE_GAP, p[1], p[2]], self.axes)
+                self.map
+                    .to_axes([p[0] + CENTRE_GAP, p[1], p[2]], self.axes)
                     .map_err(|reason| ConvertError::Unreachable { span, reason })?
             }
             Err(reason) => return Err(ConvertError::Unreachable { span, reason }),
@@ -468,19 +527,38 @@ impl<W: Write> Converter<W> {
             return;
         }
         match self.options.extrusion {
-            Extrusion::Relative => push_word(&mut self.buf, 'E', e_units - self.written.e, decimals),
-            Extrusion::Absolute => push_word(&mut self.buf, 'E', e_units - self.written.e_offset, decimals),
+            Extrusion::Relative => {
+                push_word(&mut self.buf, 'E', e_units - self.written.e, decimals)
+            }
+            Extrusion::Absolute => push_word(
+                &mut self.buf,
+                'E',
+                e_units - self.written.e_offset,
+                decimals,
+            ),
         }
     }
 
     /// Writes one `G1` to the given axes / Z / E that takes `time` seconds; `feed` (mm/s) is the E speed for
     /// extrude-only lines. Returns false when nothing changes after rounding (nothing written).
-    fn write_motion(&mut self, axes: [f64; 2], z: f64, e_units: i64, time: f64, feed: f64) -> Result<bool, ConvertError> {
+    fn write_motion(
+        &mut self,
+        axes: [f64; 2],
+        z: f64,
+        e_units: i64,
+        time: f64,
+        feed: f64,
+    ) -> Result<bool, ConvertError> {
         let units = self.axis_units(axes);
         let linear = self.options.decimals.linear;
         let z_units = to_units(z, linear);
-        let moved = [0, 1].map(|i| (units[i] - self.written.axes[i]) as f64 / scale(self.axis_decimals[i]));
-        let dz = if self.written.z_known { (z_units - self.written.z) as f64 / scale(linear) } else { 0.0 };
+        let moved =
+            [0, 1].map(|i| (units[i] - self.written.axes[i]) as f64 / scale(self.axis_decimals[i]));
+        let dz = if self.written.z_known {
+            (z_units - self.written.z) as f64 / scale(linear)
+        } else {
+            0.0
+        };
         let motor_length = (moved[0] * moved[0] + moved[1] * moved[1] + dz * dz).sqrt();
         let extrudes = e_units != self.written.e;
         if motor_length == 0.0 && !extrudes && self.written.z_known {
@@ -529,7 +607,11 @@ fn check_feed(span: Span, feed: f64) -> Result<(), ConvertError> {
     if feed.is_finite() && feed > 0.0 {
         Ok(())
     } else {
-        Err(ConvertError::Unsupported { span, what: "a move".into(), why: format!("its feed rate {feed} mm/s is not positive") })
+        Err(ConvertError::Unsupported {
+            span,
+            what: "a move".into(),
+            why: format!("its feed rate {feed} mm/s is not positive"),
+        })
     }
 }
 
@@ -552,28 +634,28 @@ fn passes_through(c: &Command) -> bool {
     }
 }
 
-/// Positioning-mode commands the conversion consumes.
+/// Positioning-mode and unit commands the conversion consumes (the interpreter has applied them).
 fn is_mode_command(name: &str) -> bool {
-    ["G90", "G91", "M82", "M83"].iter().any(|m| name.eq_ignore_ascii_case(m))
-}
-
-/// Worst nozzle displacement (mm) from rounding the written axes, for radii up to 1 m.
-fn rounding_budget(rotary: [bool; 2], axis_scale: [f64; 2], decimals: [u8; 2]) -> f64 {
-    let per_axis = [0, 1].map(|i| {
-        let half_unit = 0.5 / scale(decimals[i]) / axis_scale[i];
-        if rotary[i] { half_unit * 1000.0 } else { half_unit }
-    });
-    per_axis[0].hypot(per_axis[1])
+    ["G90", "G91", "M82", "M83", "G20", "G21"]
+        .iter()
+        .any(|m| name.eq_ignore_ascii_case(m))
 }
 
 fn validate(o: &ConvertOptions) -> Result<(), ConvertError> {
     let positive = |v: f64| v.is_finite() && v > 0.0;
     match o.segmentation {
         Segmentation::Adaptive { tolerance } if !positive(tolerance) => {
-            return Err(ConvertError::Options("tolerance must be a positive number of mm".into()));
+            return Err(ConvertError::Options(
+                "tolerance must be a positive number of mm".into(),
+            ));
         }
-        Segmentation::Fixed { segments_per_second, min_length } if !positive(segments_per_second) || !positive(min_length) => {
-            return Err(ConvertError::Options("fixed segmentation needs positive rate and length".into()));
+        Segmentation::Fixed {
+            segments_per_second,
+            min_length,
+        } if !positive(segments_per_second) || !positive(min_length) => {
+            return Err(ConvertError::Options(
+                "fixed segmentation needs positive rate and length".into(),
+            ));
         }
         _ => {}
     }
@@ -585,7 +667,9 @@ fn validate(o: &ConvertOptions) -> Result<(), ConvertError> {
         return Err(ConvertError::Options("at most 9 decimals".into()));
     }
     if o.translate.iter().any(|v| !v.is_finite()) || !positive(o.scale_xy) {
-        return Err(ConvertError::Options("placement offset must be finite".into()));
+        return Err(ConvertError::Options(
+            "placement offset must be finite".into(),
+        ));
     }
     Ok(())
 }

@@ -44,7 +44,11 @@ impl CentreCorrection {
     }
 
     /// Output axes for motor-space G-code on the real machine.
-    pub fn motor_map(&self, nominal: &PolarParams, target: Target) -> Result<AxisMap, ConvertError> {
+    pub fn motor_map(
+        &self,
+        nominal: &PolarParams,
+        target: Target,
+    ) -> Result<AxisMap, ConvertError> {
         AxisMap::motors(Arc::new(self.real_machine(nominal)?), target)
     }
 

@@ -8,13 +8,22 @@ pub enum ConvertError {
     #[error("line {}:{}: {reason}", span.line, span.column)]
     Unreachable { span: Span, reason: ReachError },
     #[error("line {}:{}: {what} cannot be converted: {why}", span.line, span.column)]
-    Unsupported { span: Span, what: String, why: String },
+    Unsupported {
+        span: Span,
+        what: String,
+        why: String,
+    },
     #[error(
         "line {}:{}: the chord error cannot be brought under {tolerance} mm near ({x:.4}, {y:.4})",
         span.line,
         span.column
     )]
-    NoConvergence { span: Span, x: f64, y: f64, tolerance: f64 },
+    NoConvergence {
+        span: Span,
+        x: f64,
+        y: f64,
+        tolerance: f64,
+    },
     #[error("machine setup: {0}")]
     Setup(String),
     #[error("invalid options: {0}")]

@@ -33,7 +33,7 @@ pub fn push_units(out: &mut Vec<u8>, units: i64, decimals: u8) {
     let mut frac = magnitude % divisor;
     let mut digits = decimals;
     if frac != 0 {
-        while frac % 10 == 0 {
+        while frac.is_multiple_of(10) {
             frac /= 10;
             digits -= 1;
         }

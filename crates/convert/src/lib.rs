@@ -56,5 +56,7 @@ pub fn convert_gcode<R: BufRead, W: Write>(
 
 /// All commands of a G-code text, for [`verify`].
 pub fn read_commands<R: BufRead>(input: R, source: &str) -> Result<Vec<Command>, GcodeError> {
-    Commands::from_reader(input, source).map(|c| c.map(|s| s.value)).collect()
+    Commands::from_reader(input, source)
+        .map(|c| c.map(|s| s.value))
+        .collect()
 }

@@ -1,5 +1,10 @@
 //! Conversion options: output axes, tolerance, units, feed convention, extrusion mode, decimals.
 
+use kinematics::MotorUnit;
+
+/// Largest radius (mm) assumed when bounding how far rounding a written angle moves the nozzle.
+const MAX_RADIUS_FOR_ROUNDING: f64 = 1000.0;
+
 /// Which motor axes the output G-code drives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Target {
@@ -51,19 +56,33 @@ pub enum Segmentation {
     Adaptive { tolerance: f64 },
     /// Firmware-style fixed rule (for comparison): `n = round(time · segments_per_second)`, at most
     /// `length / min_length`, at least 1 (Marlin: 200/s or 180/s polar, 0.5 mm; RRF: 100/s, 0.2 mm).
-    Fixed { segments_per_second: f64, min_length: f64 },
+    Fixed {
+        segments_per_second: f64,
+        min_length: f64,
+    },
 }
 
 impl Segmentation {
     pub const DEFAULT_TOLERANCE: f64 = 0.005;
-    pub const MARLIN: Segmentation = Segmentation::Fixed { segments_per_second: 200.0, min_length: 0.5 };
-    pub const MARLIN_POLAR: Segmentation = Segmentation::Fixed { segments_per_second: 180.0, min_length: 0.5 };
-    pub const RRF: Segmentation = Segmentation::Fixed { segments_per_second: 100.0, min_length: 0.2 };
+    pub const MARLIN: Segmentation = Segmentation::Fixed {
+        segments_per_second: 200.0,
+        min_length: 0.5,
+    };
+    pub const MARLIN_POLAR: Segmentation = Segmentation::Fixed {
+        segments_per_second: 180.0,
+        min_length: 0.5,
+    };
+    pub const RRF: Segmentation = Segmentation::Fixed {
+        segments_per_second: 100.0,
+        min_length: 0.2,
+    };
 }
 
 impl Default for Segmentation {
     fn default() -> Self {
-        Segmentation::Adaptive { tolerance: Self::DEFAULT_TOLERANCE }
+        Segmentation::Adaptive {
+            tolerance: Self::DEFAULT_TOLERANCE,
+        }
     }
 }
 
@@ -80,7 +99,11 @@ pub struct Decimals {
 impl Default for Decimals {
     /// 4 / 6 / 5: rounding moves the nozzle by < 0.0001 mm at 300 mm radius, far below the tolerance.
     fn default() -> Self {
-        Decimals { linear: 4, angle: 6, extrusion: 5 }
+        Decimals {
+            linear: 4,
+            angle: 6,
+            extrusion: 5,
+        }
     }
 }
 
@@ -126,8 +149,40 @@ impl ConvertOptions {
         self.axis_letters.unwrap_or(['X', 'Y'])
     }
 
+    /// Written units per internal unit (mm or rad) of an output axis.
+    pub fn axis_scale(&self, unit: MotorUnit) -> f64 {
+        match (unit, self.angle_unit) {
+            (MotorUnit::Rad, AngleUnit::Degrees) => 180.0 / std::f64::consts::PI,
+            _ => 1.0,
+        }
+    }
+
+    pub fn axis_decimals(&self, unit: MotorUnit) -> u8 {
+        match unit {
+            MotorUnit::Rad => self.decimals.angle,
+            MotorUnit::Mm => self.decimals.linear,
+        }
+    }
+
+    /// Worst nozzle displacement (mm) caused by rounding the two written planar axes (radii up to 1 m).
+    pub fn rounding_budget(&self, units: [MotorUnit; 2]) -> f64 {
+        let per_axis = units.map(|unit| {
+            let half_unit =
+                0.5 / 10f64.powi(i32::from(self.axis_decimals(unit))) / self.axis_scale(unit);
+            if unit == MotorUnit::Rad {
+                half_unit * MAX_RADIUS_FOR_ROUNDING
+            } else {
+                half_unit
+            }
+        });
+        (per_axis[0] * per_axis[0] + per_axis[1] * per_axis[1]).sqrt()
+    }
+
     /// An input XY point placed on the machine (see [`ConvertOptions::translate`]).
     pub fn place(&self, xy: [f64; 2]) -> [f64; 2] {
-        [xy[0] * self.scale_xy + self.translate[0], xy[1] * self.scale_xy + self.translate[1]]
+        [
+            xy[0] * self.scale_xy + self.translate[0],
+            xy[1] * self.scale_xy + self.translate[1],
+        ]
     }
 }

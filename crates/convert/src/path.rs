@@ -8,10 +8,13 @@ pub enum Path {
         from: [f64; 3],
         to: [f64; 3],
     },
-    /// An arc in XY about `centre`, Z changing linearly with the angle (helix).
+    /// An arc in XY about `centre`, Z changing linearly with the angle (helix). The radius changes
+    /// linearly from the start's to the end's (slicers round the end point), so the path ends exactly at
+    /// the written end point.
     Arc {
         centre: [f64; 2],
-        radius: f64,
+        /// Radius at the start and at the end.
+        radius: [f64; 2],
         /// Angle of the start point about the centre (rad).
         start_angle: f64,
         /// Signed swept angle (rad): negative clockwise.
@@ -22,11 +25,19 @@ pub enum Path {
 
 impl Path {
     /// The arc from `start` to `end` about `centre`; `turns` extra full turns; clockwise for G2.
-    /// The radius is the start radius (slicers write end points consistent to their decimals).
-    pub fn arc(start: [f64; 3], end: [f64; 3], centre: [f64; 2], clockwise: bool, turns: u32) -> Path {
+    pub fn arc(
+        start: [f64; 3],
+        end: [f64; 3],
+        centre: [f64; 2],
+        clockwise: bool,
+        turns: u32,
+    ) -> Path {
         let start_angle = (start[1] - centre[1]).atan2(start[0] - centre[0]);
         let end_angle = (end[1] - centre[1]).atan2(end[0] - centre[0]);
-        let radius = (start[0] - centre[0]).hypot(start[1] - centre[1]);
+        let radius = [
+            norm([start[0] - centre[0], start[1] - centre[1]]),
+            norm([end[0] - centre[0], end[1] - centre[1]]),
+        ];
         let tau = std::f64::consts::TAU;
         let mut sweep = end_angle - start_angle;
         if clockwise {
@@ -38,7 +49,13 @@ impl Path {
         }
         let extra = f64::from(turns) * tau;
         sweep += if clockwise { -extra } else { extra };
-        Path::Arc { centre, radius, start_angle, sweep, z: [start[2], end[2]] }
+        Path::Arc {
+            centre,
+            radius,
+            start_angle,
+            sweep,
+            z: [start[2], end[2]],
+        }
     }
 
     pub fn point(&self, s: f64) -> [f64; 3] {
@@ -48,9 +65,20 @@ impl Path {
                 from[1] + (to[1] - from[1]) * s,
                 from[2] + (to[2] - from[2]) * s,
             ],
-            Path::Arc { centre, radius, start_angle, sweep, z } => {
+            Path::Arc {
+                centre,
+                radius,
+                start_angle,
+                sweep,
+                z,
+            } => {
                 let (sin, cos) = (start_angle + sweep * s).sin_cos();
-                [centre[0] + radius * cos, centre[1] + radius * sin, z[0] + (z[1] - z[0]) * s]
+                let r = radius[0] + (radius[1] - radius[0]) * s;
+                [
+                    centre[0] + r * cos,
+                    centre[1] + r * sin,
+                    z[0] + (z[1] - z[0]) * s,
+                ]
             }
         }
     }
@@ -62,7 +90,9 @@ impl Path {
                 let d = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
                 (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
             }
-            Path::Arc { radius, sweep, z, .. } => norm([radius * sweep, z[1] - z[0]]),
+            Path::Arc {
+                radius, sweep, z, ..
+            } => norm([mean(radius) * sweep, z[1] - z[0]]),
         }
     }
 
@@ -70,7 +100,16 @@ impl Path {
     pub fn xy_length(&self) -> f64 {
         match *self {
             Path::Line { from, to } => norm([to[0] - from[0], to[1] - from[1]]),
-            Path::Arc { radius, sweep, .. } => (radius * sweep).abs(),
+            Path::Arc { radius, sweep, .. } => (mean(radius) * sweep).abs(),
+        }
+    }
+
+    /// Longest piece (as a fraction of the path) for which "near the piece" implies "along the piece": a
+    /// quarter turn of an arc (a piece of a closed arc could otherwise start and end at the same point).
+    pub fn longest_piece(&self) -> f64 {
+        match *self {
+            Path::Line { .. } => 1.0,
+            Path::Arc { sweep, .. } => (std::f64::consts::FRAC_PI_2 / sweep.abs()).min(1.0),
         }
     }
 
@@ -86,9 +125,18 @@ impl Path {
         let (a, b) = ([a[0], a[1]], [b[0], b[1]]);
         match *self {
             Path::Line { .. } => PathPart::Segment { a, b },
-            Path::Arc { centre, radius, start_angle, sweep, .. } => PathPart::Arc {
+            Path::Arc {
                 centre,
                 radius,
+                start_angle,
+                sweep,
+                ..
+            } => PathPart::Arc {
+                centre,
+                radius: [
+                    radius[0] + (radius[1] - radius[0]) * s0,
+                    radius[0] + (radius[1] - radius[0]) * s1,
+                ],
                 from: start_angle + sweep * s0,
                 span: sweep * (s1 - s0),
                 a,
@@ -101,8 +149,18 @@ impl Path {
 /// A piece of a path with its end points computed once.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PathPart {
-    Segment { a: [f64; 2], b: [f64; 2] },
-    Arc { centre: [f64; 2], radius: f64, from: f64, span: f64, a: [f64; 2], b: [f64; 2] },
+    Segment {
+        a: [f64; 2],
+        b: [f64; 2],
+    },
+    Arc {
+        centre: [f64; 2],
+        radius: [f64; 2],
+        from: f64,
+        span: f64,
+        a: [f64; 2],
+        b: [f64; 2],
+    },
 }
 
 impl PathPart {
@@ -110,11 +168,18 @@ impl PathPart {
     pub fn distance(&self, q: [f64; 2]) -> f64 {
         match *self {
             PathPart::Segment { a, b } => distance_to_segment(q, a, b),
-            PathPart::Arc { centre, radius, from, span, a, b } => {
+            PathPart::Arc {
+                centre,
+                radius,
+                from,
+                span,
+                a,
+                b,
+            } => {
                 let v = [q[0] - centre[0], q[1] - centre[1]];
                 let rho = (v[0] * v[0] + v[1] * v[1]).sqrt();
                 if rho > 0.0 && within_sweep(v, centre, from, span, a, b) {
-                    (rho - radius).abs()
+                    (rho - radius_towards(v, radius, from, span)).abs()
                 } else {
                     norm([q[0] - a[0], q[1] - a[1]]).min(norm([q[0] - b[0], q[1] - b[1]]))
                 }
@@ -123,8 +188,32 @@ impl PathPart {
     }
 }
 
+/// Radius of a (slightly spiral) arc part in direction `v`, which lies within its sweep.
+fn radius_towards(v: [f64; 2], radius: [f64; 2], from: f64, span: f64) -> f64 {
+    if radius[0] == radius[1] || span == 0.0 {
+        return radius[0];
+    }
+    let mut rel = v[1].atan2(v[0]) - from;
+    if span < 0.0 {
+        rel = -rel;
+    }
+    let fraction = (rel.rem_euclid(std::f64::consts::TAU) / span.abs()).clamp(0.0, 1.0);
+    radius[0] + (radius[1] - radius[0]) * fraction
+}
+
+fn mean(pair: [f64; 2]) -> f64 {
+    (pair[0] + pair[1]) / 2.0
+}
+
 /// Whether direction `v` (from the centre) lies in the angular range `from .. from + span`.
-fn within_sweep(v: [f64; 2], centre: [f64; 2], from: f64, span: f64, a: [f64; 2], b: [f64; 2]) -> bool {
+fn within_sweep(
+    v: [f64; 2],
+    centre: [f64; 2],
+    from: f64,
+    span: f64,
+    a: [f64; 2],
+    b: [f64; 2],
+) -> bool {
     if span.abs() <= std::f64::consts::FRAC_PI_2 {
         // Short arcs: two cross products instead of an atan2 (the hot case when cutting).
         let ua = [a[0] - centre[0], a[1] - centre[1]];
@@ -151,7 +240,11 @@ pub fn distance_to_segment(q: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let ab = [b[0] - a[0], b[1] - a[1]];
     let aq = [q[0] - a[0], q[1] - a[1]];
     let len2 = ab[0] * ab[0] + ab[1] * ab[1];
-    let t = if len2 > 0.0 { ((aq[0] * ab[0] + aq[1] * ab[1]) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if len2 > 0.0 {
+        ((aq[0] * ab[0] + aq[1] * ab[1]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     norm([aq[0] - t * ab[0], aq[1] - t * ab[1]])
 }
 
@@ -184,10 +277,18 @@ mod tests {
         let p = Path::arc([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0], false, 0);
         assert_abs_diff_eq!(p.distance_xy([0.0, 2.0], 0.0, 1.0), 1.0, epsilon = 1e-12);
         // (0, −2) is outside the quarter arc: nearest is the start point (1, 0).
-        assert_abs_diff_eq!(p.distance_xy([0.0, -2.0], 0.0, 1.0), 5f64.sqrt(), epsilon = 1e-12);
+        assert_abs_diff_eq!(
+            p.distance_xy([0.0, -2.0], 0.0, 1.0),
+            5f64.sqrt(),
+            epsilon = 1e-12
+        );
         // Restricted to the second half, (1, 0) is far from the sub-arc.
         let h = std::f64::consts::FRAC_1_SQRT_2;
-        assert_abs_diff_eq!(p.distance_xy([1.0, 0.0], 0.5, 1.0), (1.0 - h).hypot(h), epsilon = 1e-12);
+        assert_abs_diff_eq!(
+            p.distance_xy([1.0, 0.0], 0.5, 1.0),
+            (1.0 - h).hypot(h),
+            epsilon = 1e-12
+        );
     }
 
     #[test]
@@ -203,7 +304,11 @@ mod tests {
                 let rel = (-(angle - sweep * s0)).rem_euclid(std::f64::consts::TAU);
                 let inside = rel <= (sweep * (s1 - s0)).abs();
                 let d = part.distance(q);
-                assert_eq!(inside, (d - 2.0).abs() < 1e-9, "angle {angle}, part {s0}..{s1}");
+                assert_eq!(
+                    inside,
+                    (d - 2.0).abs() < 1e-9,
+                    "angle {angle}, part {s0}..{s1}"
+                );
             }
         }
     }
@@ -212,6 +317,9 @@ mod tests {
     fn segment_distance_clamps_to_end_points() {
         assert_abs_diff_eq!(distance_to_segment([3.0, 4.0], [0.0, 0.0], [0.0, 0.0]), 5.0);
         assert_abs_diff_eq!(distance_to_segment([0.5, 2.0], [0.0, 0.0], [1.0, 0.0]), 2.0);
-        assert_abs_diff_eq!(distance_to_segment([-3.0, 4.0], [0.0, 0.0], [1.0, 0.0]), 5.0);
+        assert_abs_diff_eq!(
+            distance_to_segment([-3.0, 4.0], [0.0, 0.0], [1.0, 0.0]),
+            5.0
+        );
     }
 }

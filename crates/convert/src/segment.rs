@@ -22,7 +22,7 @@ const PROBES: [f64; 3] = [0.5, 0.25, 0.75];
 /// parabola regime the quarters deviate ¾ as much as the middle.
 const MIDDLE_ONLY: f64 = 0.25;
 /// A piece shorter than this (mm) that still misses the target means the map is not smooth here.
-const MIN_PIECE_MM: f64 = 1e-7;
+const MIN_PIECE_MM: f64 = 1e-9;
 
 /// A written point: path parameter and output axes (mm / rad).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,7 +36,9 @@ pub struct Breakpoint {
 pub enum CutError {
     Reach(ReachError),
     /// The chord error stays above the target even for tiny pieces, near path parameter `s`.
-    NoConvergence { s: f64 },
+    NoConvergence {
+        s: f64,
+    },
 }
 
 impl From<ReachError> for CutError {
@@ -67,7 +69,13 @@ pub fn chord_deviation(
 
 /// Deviation of a trial piece: the middle probe, and the quarter probes unless the middle is far inside the
 /// target. A probe where the map fails counts as infinite (the piece is split).
-fn probe(path: &Path, map: &AxisMap, from: (f64, [f64; 2]), to: (f64, [f64; 2]), target: f64) -> f64 {
+fn probe(
+    path: &Path,
+    map: &AxisMap,
+    from: (f64, [f64; 2]),
+    to: (f64, [f64; 2]),
+    target: f64,
+) -> f64 {
     let middle = chord_deviation(path, map, from, to, &PROBES[..1]).unwrap_or(f64::INFINITY);
     if middle <= target * MIDDLE_ONLY || middle > target {
         return middle;
@@ -88,21 +96,27 @@ pub fn cut_adaptive(
     let rotary = map.units().map(|u| u == MotorUnit::Rad);
     let length = path.length().max(path.xy_length());
     let (mut s0, mut a0) = (s_start, a_start);
-    let mut h = s_end - s_start;
+    let longest = path.longest_piece();
+    let mut h = balanced(s_end - s_start, longest);
     while s0 < s_end {
-        let mut s1 = (s0 + h).min(s_end);
+        let mut s1 = (s0 + h.min(longest)).min(s_end);
         // Do not leave a sliver at the end.
         if (s_end - s1) * length < 1e-6 {
             s1 = s_end;
         }
         let trial = map.to_axes(path.point(s1), a0);
+        let piece = s1 - s0;
+        // A piece that turns a rotary axis too far is shortened to the allowed turn directly.
+        let turn = match trial {
+            Ok(a1) => turn_ratio(a0, a1, rotary),
+            _ => 0.0,
+        };
         let error = match trial {
-            Ok(a1) if turns_too_far(a0, a1, rotary) => f64::INFINITY,
+            Ok(_) if turn > 1.0 + 1e-9 => f64::INFINITY,
             Ok(a1) => probe(path, map, (s0, a0), (s1, a1), target),
             Err(ReachError::AtCentre { .. }) => f64::INFINITY,
             Err(e) => return Err(e.into()),
         };
-        let piece = s1 - s0;
         let next = match trial {
             Ok(a1) if error <= target => {
                 out.push(Breakpoint { s: s1, axes: a1 });
@@ -114,10 +128,14 @@ pub fn cut_adaptive(
                 if piece * length < MIN_PIECE_MM {
                     return Err(CutError::NoConvergence { s: s0 });
                 }
-                piece * shrink(target, error)
+                if turn > 1.0 + 1e-9 {
+                    piece / turn
+                } else {
+                    piece * shrink(target, error)
+                }
             }
         };
-        h = balanced(s_end - s0, next);
+        h = balanced(s_end - s0, next.min(longest));
     }
     Ok(())
 }
@@ -128,8 +146,13 @@ fn balanced(remaining: f64, preferred: f64) -> f64 {
     if remaining <= 0.0 || preferred <= 0.0 {
         return preferred;
     }
-    let pieces = (remaining / preferred).ceil().max(1.0);
-    if pieces > 1e6 { preferred } else { remaining / pieces }
+    // Not one piece more for a rounding error in the ratio.
+    let pieces = (remaining / preferred - 1e-9).ceil().max(1.0);
+    if pieces > 1e6 {
+        preferred
+    } else {
+        remaining / pieces
+    }
 }
 
 /// Fixed cut into `n` pieces of equal length.
@@ -144,7 +167,11 @@ pub fn cut_fixed(
     let n = n.max(1);
     let mut near = a_start;
     for i in 1..=n {
-        let s = if i == n { s_end } else { s_start + (s_end - s_start) * (i as f64 / n as f64) };
+        let s = if i == n {
+            s_end
+        } else {
+            s_start + (s_end - s_start) * (i as f64 / n as f64)
+        };
         let axes = map.to_axes(path.point(s), near)?;
         out.push(Breakpoint { s, axes });
         near = axes;
@@ -152,16 +179,28 @@ pub fn cut_fixed(
     Ok(())
 }
 
-fn turns_too_far(a0: [f64; 2], a1: [f64; 2], rotary: [bool; 2]) -> bool {
-    (rotary[0] && (a1[0] - a0[0]).abs() > MAX_ANGLE_STEP) || (rotary[1] && (a1[1] - a0[1]).abs() > MAX_ANGLE_STEP)
+/// Largest turn of a rotary axis from `a0` to `a1`, as a multiple of [`MAX_ANGLE_STEP`].
+fn turn_ratio(a0: [f64; 2], a1: [f64; 2], rotary: [bool; 2]) -> f64 {
+    (0..2)
+        .filter(|&i| rotary[i])
+        .map(|i| (a1[i] - a0[i]).abs() / MAX_ANGLE_STEP)
+        .fold(0.0, f64::max)
 }
 
 /// Next piece length factor after an accepted piece with deviation `error` (chord error ∝ h²).
 fn growth(target: f64, error: f64) -> f64 {
-    if error <= 0.0 { 4.0 } else { (0.95 * (target / error).sqrt()).clamp(0.5, 4.0) }
+    if error <= 0.0 {
+        4.0
+    } else {
+        (0.95 * (target / error).sqrt()).clamp(0.5, 4.0)
+    }
 }
 
 /// Piece length factor after a rejected trial.
 fn shrink(target: f64, error: f64) -> f64 {
-    if error.is_finite() { (0.95 * (target / error).sqrt()).clamp(0.1, 0.7) } else { 0.5 }
+    if error.is_finite() {
+        (0.95 * (target / error).sqrt()).clamp(0.1, 0.7)
+    } else {
+        0.5
+    }
 }

@@ -3,9 +3,11 @@
 //! intended Cartesian path densely along every written segment; also totals extrusion and print time at the
 //! requested speeds on both sides.
 //!
-//! Matching: each written segment is compared with the input move whose path contains its end point (the
-//! converter writes every segment end on the path); input moves are consumed in order, looking a few moves
-//! ahead to step over moves that wrote nothing.
+//! Matching: the converter writes every segment's end points on the intended path (to rounding), and the
+//! last segment of a move at the move's end. Each written segment is compared with the first input move,
+//! in order, whose path holds both its end points; after a segment that ends at its move's end point the
+//! search starts at the next move. Input moves that wrote nothing are stepped over. A segment off every
+//! path is counted in [`VerifyReport::unmatched`] and measured against the nearest upcoming move.
 
 use std::collections::VecDeque;
 
@@ -18,8 +20,6 @@ use crate::path::Path;
 
 /// Samples per written segment (evenly spaced, end points included).
 pub const SAMPLES_PER_SEGMENT: usize = 32;
-/// A segment end farther than this (mm) from a move's path does not belong to it.
-const MATCH_DISTANCE: f64 = 1e-3;
 /// How many input moves ahead a written segment may belong to.
 const LOOKAHEAD: usize = 64;
 
@@ -35,7 +35,7 @@ pub struct VerifyReport {
     /// Motion lines checked (positioning `G0`s excluded).
     pub segments: u64,
     pub samples: u64,
-    /// Written segments whose end point lies on none of the next input moves.
+    /// Written segments whose end points lie on none of the next input moves.
     pub unmatched: u64,
     /// Net extrusion (mm of filament) of the input and of the output.
     pub extrusion_in: f64,
@@ -73,8 +73,15 @@ pub fn verify<'a>(
     let mut reader = OutputReader::new(map, options);
     let mut window: VecDeque<Intended> = VecDeque::new();
     let mut squares = 0.0;
+    // Segment ends lie on their path up to the output's rounding.
+    let on_path = 3.0 * options.rounding_budget(map.units()) + 1e-9;
+    let mut move_finished = false;
     for (index, line) in output.lines().enumerate() {
-        let Some(segment) = reader.read(line).map_err(|()| VerifyError { line: index + 1, text: line.to_string() })? else {
+        let Some(segment) = reader.read(line).map_err(|()| VerifyError {
+            line: index + 1,
+            text: line.to_string(),
+        })?
+        else {
             continue;
         };
         if segment.positioning {
@@ -82,7 +89,10 @@ pub fn verify<'a>(
         }
         report.segments += 1;
         report.time_out += segment.time;
-        let (Ok(start), Ok(end)) = (map.from_axes(segment.from, segment.z[0]), map.from_axes(segment.to, segment.z[1])) else {
+        let (Ok(start), Ok(end)) = (
+            map.from_axes(segment.from, segment.z[0]),
+            map.from_axes(segment.to, segment.z[1]),
+        ) else {
             report.unmatched += 1;
             continue;
         };
@@ -95,12 +105,33 @@ pub fn verify<'a>(
                 None => break,
             }
         }
-        let Some(k) = window.iter().position(|m| m.path.distance_xy(end, 0.0, 1.0) <= MATCH_DISTANCE) else {
-            report.unmatched += 1;
-            continue;
+        if move_finished && !window.is_empty() {
+            window.pop_front();
+        }
+        let miss = |m: &Intended| {
+            let part = m.path.part(0.0, 1.0);
+            part.distance(start).max(part.distance(end))
+        };
+        let k = match window.iter().position(|m| miss(m) <= on_path) {
+            Some(k) => k,
+            None => {
+                // Off every path: compare with the nearest one, so a wrong output shows how wrong it is.
+                report.unmatched += 1;
+                let nearest = window
+                    .iter()
+                    .map(miss)
+                    .enumerate()
+                    .min_by(|a, b| a.1.total_cmp(&b.1));
+                match nearest {
+                    Some((k, _)) => k,
+                    None => continue,
+                }
+            }
         };
         window.drain(..k);
         let path = window[0].path;
+        let path_end = path.point(1.0);
+        move_finished = (end[0] - path_end[0]).hypot(end[1] - path_end[1]) <= on_path;
         for i in 0..=SAMPLES_PER_SEGMENT {
             let u = i as f64 / SAMPLES_PER_SEGMENT as f64;
             let a = [0, 1].map(|j| segment.from[j] + (segment.to[j] - segment.from[j]) * u);
@@ -119,7 +150,11 @@ pub fn verify<'a>(
         }
     }
     moves.by_ref().for_each(drop);
-    report.rms_deviation = if report.samples > 0 { (squares / report.samples as f64).sqrt() } else { 0.0 };
+    report.rms_deviation = if report.samples > 0 {
+        (squares / report.samples as f64).sqrt()
+    } else {
+        0.0
+    };
     report.extrusion_in = moves.extrusion;
     report.time_in = moves.time;
     report.extrusion_out = reader.extrusion;
@@ -138,7 +173,14 @@ struct IntendedMoves<'o, I> {
 
 impl<'a, 'o, I: Iterator<Item = &'a Command>> IntendedMoves<'o, I> {
     fn new(commands: I, options: &'o ConvertOptions) -> Self {
-        IntendedMoves { commands, options, position: None, last_e: 0.0, extrusion: 0.0, time: 0.0 }
+        IntendedMoves {
+            commands,
+            options,
+            position: None,
+            last_e: 0.0,
+            extrusion: 0.0,
+            time: 0.0,
+        }
     }
 
     fn placed(&self, p: [f64; 4]) -> [f64; 4] {
@@ -162,15 +204,28 @@ impl<'a, I: Iterator<Item = &'a Command>> Iterator for IntendedMoves<'_, I> {
             let (path, feed, de) = match self.commands.next()? {
                 Command::Move(m) => {
                     let target = self.placed(m.target);
-                    let Some(start) = self.advance(target) else { continue };
-                    let path = Path::Line { from: [start[0], start[1], start[2]], to: [target[0], target[1], target[2]] };
+                    let Some(start) = self.advance(target) else {
+                        continue;
+                    };
+                    let path = Path::Line {
+                        from: [start[0], start[1], start[2]],
+                        to: [target[0], target[1], target[2]],
+                    };
                     (path, m.feed, target[3] - start[3])
                 }
                 Command::Arc(a) => {
                     let target = self.placed(a.target);
-                    let Some(start) = self.advance(target) else { continue };
+                    let Some(start) = self.advance(target) else {
+                        continue;
+                    };
                     let centre = self.options.place(a.centre);
-                    let path = Path::arc([start[0], start[1], start[2]], [target[0], target[1], target[2]], centre, a.clockwise, a.turns);
+                    let path = Path::arc(
+                        [start[0], start[1], start[2]],
+                        [target[0], target[1], target[2]],
+                        centre,
+                        a.clockwise,
+                        a.turns,
+                    );
                     (path, a.feed, target[3] - start[3])
                 }
                 Command::Home { .. } => {
@@ -221,7 +276,9 @@ impl OutputReader {
         };
         OutputReader {
             letters: options.letters(),
-            to_internal: map.units().map(|u| if u == MotorUnit::Rad { angle } else { 1.0 }),
+            to_internal: map
+                .units()
+                .map(|u| if u == MotorUnit::Rad { angle } else { 1.0 }),
             relative_e: options.extrusion == Extrusion::Relative,
             axes: [0.0; 2],
             z: 0.0,
@@ -235,7 +292,9 @@ impl OutputReader {
     fn read(&mut self, line: &str) -> Result<Option<WrittenSegment>, ()> {
         let code = line.split(';').next().unwrap_or("").trim();
         let mut words = code.split_ascii_whitespace();
-        let Some(head) = words.next() else { return Ok(None) };
+        let Some(head) = words.next() else {
+            return Ok(None);
+        };
         match head {
             "G93" => self.inverse_time = true,
             "G94" => self.inverse_time = false,
@@ -252,7 +311,11 @@ impl OutputReader {
         Ok(None)
     }
 
-    fn motion<'l>(&mut self, positioning: bool, words: impl Iterator<Item = &'l str>) -> Result<WrittenSegment, ()> {
+    fn motion<'l>(
+        &mut self,
+        positioning: bool,
+        words: impl Iterator<Item = &'l str>,
+    ) -> Result<WrittenSegment, ()> {
         let (from, z0) = (self.axes, self.z);
         let mut written_delta = [0.0f64; 3];
         let mut de = 0.0;
@@ -272,8 +335,16 @@ impl OutputReader {
                         self.z = value;
                     }
                     'E' => {
-                        de = if self.relative_e { value } else { value - self.e };
-                        self.e = if self.relative_e { self.e + value } else { value };
+                        de = if self.relative_e {
+                            value
+                        } else {
+                            value - self.e
+                        };
+                        self.e = if self.relative_e {
+                            self.e + value
+                        } else {
+                            value
+                        };
                     }
                     'F' => feed = Some(value),
                     _ => return Err(()),
@@ -288,6 +359,12 @@ impl OutputReader {
             Some(f) if f > 0.0 => 60.0 * if length > 0.0 { length } else { de.abs() } / f,
             _ => return Err(()),
         };
-        Ok(WrittenSegment { from, to: self.axes, z: [z0, self.z], time, positioning })
+        Ok(WrittenSegment {
+            from,
+            to: self.axes,
+            z: [z0, self.z],
+            time,
+            positioning,
+        })
     }
 }

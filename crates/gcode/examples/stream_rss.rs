@@ -1,5 +1,7 @@
 //! Streams a large generated G-code input (default 1 GiB, never held in memory) through the reader and
 //! interpreter, to measure peak memory: `/usr/bin/time -v target/release/examples/stream_rss [MiB]`.
+//!
+//! Measured (2026-11, 2-vCPU VM): 1 GiB streamed (21 M moves), maximum resident set size 2.7 MB.
 
 use std::io::{BufReader, Read};
 

@@ -31,8 +31,13 @@ fn main() {
         eprintln!("no corpus in {}", dir.display());
         return;
     }
+    // `THROUGHPUT_MB` sets the input size (default 50).
+    let megabytes: usize = std::env::var("THROUGHPUT_MB")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(50);
     let mut data = Vec::new();
-    while data.len() < 50 << 20 {
+    while data.len() < megabytes << 20 {
         data.extend_from_slice(&unit);
     }
     // `THROUGHPUT_ONLY=lex+interpret` runs one measurement (for profiling).
@@ -42,7 +47,8 @@ fn main() {
             return;
         }
         let mut best = f64::MAX;
-        for _ in 0..5 {
+        let rounds = if only.is_some() { 1 } else { 5 };
+        for _ in 0..rounds {
             let (Some(before), started) = (cpu_ns(), std::time::Instant::now()) else {
                 return;
             };
@@ -52,7 +58,7 @@ fn main() {
             let _ = started;
         }
         println!(
-            "{name}: {:.0} MB/s ({} MB, best of 5, CPU time)",
+            "{name}: {:.0} MB/s ({} MB, best of {rounds}, CPU time)",
             data.len() as f64 / 1e6 / best,
             data.len() >> 20
         );

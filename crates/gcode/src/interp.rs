@@ -167,41 +167,47 @@ impl Interpreter {
 
     /// Interprets one line, queueing its commands (none on error: the state is left unchanged).
     pub fn interpret_line(&mut self, line: &Line<'_>, source: &Arc<str>) -> Result<(), GcodeError> {
-        if let Some(command) = self.interpret(line, source)? {
-            self.queue.push_front(command);
+        match self.interpret(line, source) {
+            Some(Ok(command)) => self.queue.push_front(command),
+            Some(Err(err)) => return Err(err),
+            None => {}
         }
         Ok(())
     }
 
-    /// Interprets one line; the line's main command is returned directly when nothing is queued
-    /// before it (the common case: no queue round trip), anything else is queued after it.
+    /// Interprets one line. The line's main command is returned directly when nothing is queued
+    /// before it (the common case: no queue round trip, and already in the shape
+    /// [`Commands::next_command`] returns); anything else is queued after it.
     fn interpret(
         &mut self,
         line: &Line<'_>,
         source: &Arc<str>,
-    ) -> Result<Option<Spanned<Command>>, GcodeError> {
+    ) -> Option<Result<Spanned<Command>, GcodeError>> {
         let mut direct = None;
         if let Some(word) = line.command() {
-            let command = self
-                .command(line, word)
-                .map_err(|fail| GcodeError::new(source, fail.0, line.text(), fail.1))?;
-            self.flush_pending_layer();
-            if let Some(value) = command {
-                let command = Spanned {
-                    span: line.command_extent(),
-                    value,
-                };
-                if self.queue.is_empty() {
-                    direct = Some(command);
-                } else {
-                    self.queue.push_back(command);
+            match self.command(line, word) {
+                Err(fail) => {
+                    return Some(Err(GcodeError::new(source, fail.0, line.text(), fail.1)));
+                }
+                Ok(None) => self.flush_pending_layer(),
+                Ok(Some(value)) => {
+                    self.flush_pending_layer();
+                    let command = Spanned {
+                        span: line.command_extent(),
+                        value,
+                    };
+                    if self.queue.is_empty() {
+                        direct = Some(Ok(command));
+                    } else {
+                        self.queue.push_back(command);
+                    }
                 }
             }
         }
         if line.has_comments() {
             self.comments(line);
         }
-        Ok(direct)
+        direct
     }
 
     fn flush_pending_layer(&mut self) {
@@ -322,6 +328,7 @@ impl Interpreter {
     }
 
     /// G0/G1: Klipper's `cmd_G1`.
+    #[inline]
     fn linear_move(&mut self, line: &Line<'_>, rapid: bool) -> Result<Move, Fail> {
         let (target, named, feed) = self.target(line, XYZEF)?;
         let speed = self.feed(feed)?;
@@ -338,6 +345,7 @@ impl Interpreter {
     /// New machine position from X Y Z E words (not yet committed) and the F word, in one pass over
     /// the words that also warns about letters outside `allowed` and repeated letters.
     #[allow(clippy::type_complexity)]
+    #[inline]
     fn target<'l>(
         &mut self,
         line: &Line<'l>,
@@ -386,6 +394,7 @@ impl Interpreter {
     }
 
     /// Speed after this line's F word (if any), mm/s.
+    #[inline]
     fn feed(&self, word: Option<&Word>) -> Result<f64, Fail> {
         let Some(word) = word else {
             return Ok(self.speed);
@@ -625,6 +634,7 @@ fn other(line: &Line<'_>) -> Command {
 }
 
 /// A word's value; a bare flag where a number is needed is an error.
+#[inline]
 fn required(word: &Word) -> Result<f64, Fail> {
     word.value.ok_or_else(|| {
         Box::new((
@@ -772,11 +782,11 @@ impl<R: BufRead> Commands<R> {
                     self.finished = true;
                 }
                 Some(Err(err)) => return Some(Err(err)),
-                Some(Ok(line)) => match self.interpreter.interpret(&line, &self.source) {
-                    Ok(Some(command)) => return Some(Ok(command)),
-                    Ok(None) => {}
-                    Err(err) => return Some(Err(err)),
-                },
+                Some(Ok(line)) => {
+                    if let Some(result) = self.interpreter.interpret(&line, &self.source) {
+                        return Some(result);
+                    }
+                }
             }
         }
     }

@@ -294,6 +294,45 @@ fn takes_raw_text(letter: u8, major: u32) -> bool {
         )
 }
 
+/// End of a bad word starting before `from`: up to the next blank or comment.
+fn word_end(bytes: &[u8], from: usize) -> usize {
+    let mut end = from.min(bytes.len());
+    while end < bytes.len() && !ends_word(Some(bytes[end])) {
+        end += 1;
+    }
+    end
+}
+
+/// The number of the word whose letter is at `word_start`; returns it and the index after it.
+#[inline]
+fn word_value(bytes: &[u8], word_start: usize) -> Result<(f64, usize), LexError> {
+    match parse_number(bytes, word_start + 1) {
+        Ok((value, end)) => match bytes.get(end).copied() {
+            Some(b'e') => Err(LexError::new(
+                ErrorKind::ExponentNotAllowed,
+                word_start,
+                word_end(bytes, end),
+            )),
+            Some(b) if !ends_word(Some(b)) && !b.is_ascii_alphabetic() => Err(LexError::new(
+                ErrorKind::InvalidNumber,
+                word_start,
+                word_end(bytes, end),
+            )),
+            _ => Ok((value, end)),
+        },
+        Err(NumberError::Invalid) => Err(LexError::new(
+            ErrorKind::InvalidNumber,
+            word_start,
+            word_end(bytes, word_start + 1),
+        )),
+        Err(NumberError::Overflow) => Err(LexError::new(
+            ErrorKind::NumberOverflow,
+            word_start,
+            word_end(bytes, word_start + 1),
+        )),
+    }
+}
+
 impl Lexer<'_, '_> {
     fn peek(&self) -> Option<u8> {
         self.bytes.get(self.pos).copied()
@@ -433,78 +472,59 @@ impl Lexer<'_, '_> {
 
     /// End of a bad word, for the error span: up to the next blank or comment.
     fn word_end(&self, from: usize) -> usize {
-        let mut end = from.min(self.bytes.len());
-        while end < self.bytes.len() && !ends_word(Some(self.bytes[end])) {
-            end += 1;
-        }
-        end
+        word_end(self.bytes, from)
     }
 
+    /// Classic words: the hot loop of the lexer, on local copies of the position (faster than
+    /// going through `self` for every byte).
     fn classic_params(&mut self) -> Result<(), LexError> {
+        let bytes = self.bytes;
+        let line = self.tokens.line;
+        let mut pos = self.pos;
         loop {
-            self.skip_blanks();
-            match self.peek() {
-                None => return Ok(()),
-                Some(b';') => return self.semicolon_comment(),
-                Some(b'(') => self.paren_comment()?,
-                Some(b'*') => return self.checksum(),
-                Some(b) if b.is_ascii_alphabetic() => self.word(b.to_ascii_uppercase())?,
-                Some(_) => return Err(self.unexpected_char()),
+            while let Some(b' ' | b'\t') = bytes.get(pos) {
+                pos += 1;
             }
-        }
-    }
-
-    /// One parameter word starting at a letter.
-    fn word(&mut self, letter: u8) -> Result<(), LexError> {
-        let start = self.pos;
-        self.pos += 1;
-        let value = match self.peek() {
-            next if ends_word(next) => None,
-            Some(b'0'..=b'9' | b'.' | b'-' | b'+') => Some(self.word_value(start)?),
-            _ => {
-                return Err(LexError::new(
-                    ErrorKind::InvalidNumber,
-                    start,
-                    self.word_end(start + 1),
-                ));
-            }
-        };
-        let span = span_of(self.tokens.line, start, self.pos);
-        self.tokens.words.push(Word {
-            letter,
-            value,
-            span,
-        });
-        self.tokens.params_end = self.pos;
-        Ok(())
-    }
-
-    fn word_value(&mut self, word_start: usize) -> Result<f64, LexError> {
-        match parse_number(self.bytes, self.pos) {
-            Ok((value, end)) => {
-                self.pos = end;
-                match self.peek() {
-                    Some(b'e') => Err(LexError::new(
-                        ErrorKind::ExponentNotAllowed,
-                        word_start,
-                        self.word_end(end),
-                    )),
-                    Some(b) if !ends_word(Some(b)) && !b.is_ascii_alphabetic() => Err(
-                        LexError::new(ErrorKind::InvalidNumber, word_start, self.word_end(end)),
-                    ),
-                    _ => Ok(value),
+            let Some(&b) = bytes.get(pos) else {
+                self.pos = pos;
+                return Ok(());
+            };
+            if !b.is_ascii_alphabetic() {
+                self.pos = pos;
+                match b {
+                    b';' => return self.semicolon_comment(),
+                    b'(' => {
+                        self.paren_comment()?;
+                        pos = self.pos;
+                        continue;
+                    }
+                    b'*' => return self.checksum(),
+                    _ => return Err(self.unexpected_char()),
                 }
             }
-            Err(NumberError::Invalid) => Err(LexError::new(
-                ErrorKind::InvalidNumber,
-                word_start,
-                self.word_end(word_start + 1),
-            )),
-            Err(NumberError::Overflow) => Err(LexError::new(
-                ErrorKind::NumberOverflow,
-                word_start,
-                self.word_end(word_start + 1),
-            )),
+            let start = pos;
+            let value = match bytes.get(pos + 1).copied() {
+                Some(b'0'..=b'9' | b'.' | b'-' | b'+') => {
+                    let (value, end) = word_value(bytes, start)?;
+                    pos = end;
+                    Some(value)
+                }
+                next if ends_word(next) => {
+                    pos += 1;
+                    None
+                }
+                _ => {
+                    let end = word_end(bytes, start + 1);
+                    return Err(LexError::new(ErrorKind::InvalidNumber, start, end));
+                }
+            };
+            let letter = b.to_ascii_uppercase();
+            self.tokens.words.push(Word {
+                letter,
+                value,
+                span: span_of(line, start, pos),
+            });
+            self.tokens.params_end = pos;
         }
     }
 

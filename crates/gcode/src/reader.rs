@@ -336,6 +336,30 @@ mod tests {
         }
     }
 
+    /// Reference line splitting: `\r\n`, `\r` and `\n` end a line; a final line needs no end.
+    fn split_lines(text: &str) -> Vec<String> {
+        let normalised = text.replace("\r\n", "\n").replace('\r', "\n");
+        let mut lines: Vec<String> = normalised.split('\n').map(str::to_owned).collect();
+        if lines.last().is_some_and(String::is_empty) {
+            lines.pop();
+        }
+        lines
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn any_buffer_size_gives_the_same_lines(text in "(;[a-z ]{0,12}|[\r\n]){0,30}", capacity in 1usize..40) {
+            let reader = io::BufReader::with_capacity(capacity, text.as_bytes());
+            let mut reader = Reader::new(reader, "t");
+            let mut lines = Vec::new();
+            while let Some(line) = reader.next_line() {
+                lines.push(line.map(|l| l.text().to_owned()).map_err(|e| e.to_string()));
+            }
+            let expected: Vec<Result<String, String>> = split_lines(&text).into_iter().map(Ok).collect();
+            proptest::prop_assert_eq!(lines, expected);
+        }
+    }
+
     #[test]
     fn too_long_lines_are_skipped_with_an_error() {
         let data = format!("G1 X{}\nG1 X2\n", "1".repeat(100));

@@ -2,7 +2,7 @@
 
 use crate::arcs::split_arc;
 use crate::limits::VelocityLimits;
-use crate::toolhead::{MoveError, Toolhead};
+use crate::toolhead::{MoveError, SlowMoves, Toolhead};
 use gcode::{AccelParams, Command, Span, Spanned, VelocityLimit};
 use trapq::MoveSink;
 
@@ -24,6 +24,13 @@ pub enum PlanErrorKind {
     CruiseRatio,
     #[error("G28: this machine has no homing position configured")]
     NoHoming,
+}
+
+impl PlanError {
+    /// The move's segment could not be reached (as opposed to a bad command).
+    pub fn is_unreachable(&self) -> bool {
+        matches!(self.kind, PlanErrorKind::Move(MoveError::Unreachable { .. }))
+    }
 }
 
 /// Something the planner ignored that the user may want to know about.
@@ -56,15 +63,25 @@ impl<'k, S: MoveSink> Planner<'k, S> {
         &self.warnings
     }
 
+    /// Record a warning.
+    pub fn warn(&mut self, span: Span, message: String) {
+        self.warnings.push(Warning { span, message });
+    }
+
     /// Klipper's batch mode read another block of input (see [`Toolhead::input_block_boundary`]).
     pub fn input_block_boundary(&mut self) {
         self.toolhead.input_block_boundary();
     }
 
-    /// Finish planning: the sink, the final print time and the warnings.
-    pub fn finish(self) -> (S, f64, Vec<Warning>) {
-        let (sink, end) = self.toolhead.finish();
-        (sink, end, self.warnings)
+    /// Start from a known pose (the machine was homed before the file begins).
+    pub fn start_at(&mut self, xyz: [f64; 3]) {
+        self.toolhead.set_position(xyz);
+    }
+
+    /// Finish planning: the sink, the final print time, the warnings and the moves slowed hard.
+    pub fn finish(self) -> (S, f64, Vec<Warning>, SlowMoves) {
+        let (sink, end, slow) = self.toolhead.finish();
+        (sink, end, self.warnings, slow)
     }
 
     /// Carry out one command. Returns the machine position when it differs from what the G-code interpreter

@@ -14,4 +14,4 @@ pub mod toolhead;
 
 pub use driver::{PlanError, PlanErrorKind, Planner, Warning};
 pub use limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
-pub use toolhead::{MoveError, Toolhead};
+pub use toolhead::{MoveError, SlowMove, SlowMoves, Toolhead};

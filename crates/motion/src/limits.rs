@@ -69,6 +69,8 @@ pub struct PlannerConfig {
     /// first second of print time. Off: moves are planned by the lookahead alone (what a live printer does
     /// when fed fast enough). Needed only to compare with Klipper's batch output.
     pub klipper_batch_flush: bool,
+    /// Skip moves whose segment is unreachable (reported as warnings) instead of stopping with an error.
+    pub skip_unreachable: bool,
 }
 
 impl PlannerConfig {
@@ -85,6 +87,7 @@ impl PlannerConfig {
             kin_flush_delay: 0.001,
             initial_step_gen_time: 0.0,
             klipper_batch_flush: false,
+            skip_unreachable: false,
         }
     }
 }

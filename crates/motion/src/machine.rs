@@ -3,7 +3,7 @@
 
 use crate::driver::{PlanError, Planner, Warning};
 use crate::limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
-use crate::toolhead::Toolhead;
+use crate::toolhead::{SlowMoves, Toolhead};
 use config::{KinematicsKind, MachineConfig};
 use gcode::{Commands, GcodeError};
 use kinematics::Kinematics;
@@ -35,6 +35,8 @@ pub struct PlanSummary {
     pub end_time: f64,
     pub warnings: Vec<Warning>,
     pub gcode_warnings: Vec<gcode::Warning>,
+    /// Moves a machine limit slowed below a quarter of their requested speed.
+    pub slow_moves: SlowMoves,
 }
 
 /// Kinematics + planner configuration + homing pose of one machine.
@@ -115,6 +117,97 @@ fn kin_forward(kin: &dyn Kinematics, motors: &[f64]) -> Result<[f64; 3], SetupEr
     Ok(p)
 }
 
+/// One problem found by [`check_gcode`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Problem {
+    pub span: gcode::Span,
+    pub severity: Severity,
+    pub message: String,
+    /// The offending line's text, when the reader kept it (G-code syntax errors).
+    pub line_text: Option<(String, usize)>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Severity {
+    Warning,
+    Error,
+}
+
+/// Everything [`check_gcode`] found, and the print time of what could be planned.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckReport {
+    pub problems: Vec<Problem>,
+    pub end_time: f64,
+    pub slow_moves: u64,
+}
+
+impl CheckReport {
+    pub fn errors(&self) -> usize {
+        self.problems.iter().filter(|p| p.severity == Severity::Error).count()
+    }
+}
+
+/// Plan a stream without generating steps and collect every problem instead of stopping at the first:
+/// syntax errors, unreachable segments (skipped, the machine stays put), commands the planner refused,
+/// ignored commands, and moves that a machine limit slows below a quarter of their requested speed.
+/// At most `max_problems` are kept (all are counted in the error total).
+pub fn check_gcode(setup: &MachineSetup, input: impl BufRead, source_name: &str, max_problems: usize) -> CheckReport {
+    let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), ());
+    let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
+    let mut commands = Commands::from_reader(input, source_name);
+    if let Some(home) = setup.home_position {
+        planner.start_at(home);
+        let mut position = commands.interpreter().last_position();
+        position[..3].copy_from_slice(&home);
+        commands.interpreter_mut().set_position(position);
+    }
+    let mut problems = Vec::new();
+    let mut push = |problem: Problem| {
+        if problems.len() < max_problems {
+            problems.push(problem);
+        }
+    };
+    while let Some(command) = commands.next_command() {
+        match command {
+            Err(e) => push(Problem {
+                span: e.span,
+                severity: Severity::Error,
+                message: e.kind.to_string(),
+                line_text: Some((e.line_text.clone(), e.line_text_offset)),
+            }),
+            Ok(command) => match planner.command(&command) {
+                Ok(Some(position)) => commands.interpreter_mut().set_position(position),
+                Ok(None) => {}
+                Err(e) => {
+                    push(Problem { span: e.span, severity: Severity::Error, message: e.kind.to_string(), line_text: None });
+                    let position = planner.toolhead().position();
+                    commands.interpreter_mut().set_position(position);
+                }
+            },
+        }
+    }
+    for w in commands.take_warnings() {
+        push(Problem { span: w.span, severity: Severity::Warning, message: w.to_string(), line_text: None });
+    }
+    let (_, end_time, warnings, slow) = planner.finish();
+    for w in warnings {
+        push(Problem { span: w.span, severity: Severity::Warning, message: w.message, line_text: None });
+    }
+    for s in &slow.first {
+        push(Problem {
+            span: gcode::Span { line: s.origin, column: 1, len: 0 },
+            severity: Severity::Warning,
+            message: format!(
+                "move slowed to {:.1} mm/s by a machine limit (requested {:.1} mm/s)",
+                s.allowed, s.requested
+            ),
+            line_text: None,
+        });
+    }
+    problems.sort_by_key(|p| (p.span.line, p.span.column));
+    CheckReport { problems, end_time, slow_moves: slow.total }
+}
+
 /// Bytes Klipper's batch mode reads from its input at a time.
 const KLIPPER_INPUT_BLOCK: u64 = 4096;
 
@@ -129,6 +222,13 @@ pub fn plan_gcode<S: MoveSink>(
     let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), sink);
     let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
     let mut commands = Commands::from_reader(input, source_name);
+    // A file is printed on a homed machine: start at the homing pose.
+    if let Some(home) = setup.home_position {
+        planner.start_at(home);
+        let mut position = commands.interpreter().last_position();
+        position[..3].copy_from_slice(&home);
+        commands.interpreter_mut().set_position(position);
+    }
     let mut block = 0u64;
     while let Some(command) = commands.next_command() {
         let command = command?;
@@ -138,11 +238,19 @@ pub fn plan_gcode<S: MoveSink>(
             planner.input_block_boundary();
             block += 1;
         }
-        if let Some(position) = planner.command(&command)? {
-            commands.interpreter_mut().set_position(position);
+        match planner.command(&command) {
+            Ok(Some(position)) => commands.interpreter_mut().set_position(position),
+            Ok(None) => {}
+            Err(e) if setup.planner.skip_unreachable && e.is_unreachable() => {
+                planner.warn(e.span, e.kind.to_string());
+                // The machine stays where it was; later relative moves continue from there.
+                let position = planner.toolhead().position();
+                commands.interpreter_mut().set_position(position);
+            }
+            Err(e) => return Err(e.into()),
         }
     }
     let gcode_warnings = commands.take_warnings();
-    let (sink, end_time, warnings) = planner.finish();
-    Ok((sink, PlanSummary { end_time, warnings, gcode_warnings }))
+    let (sink, end_time, warnings, slow_moves) = planner.finish();
+    Ok((sink, PlanSummary { end_time, warnings, gcode_warnings, slow_moves }))
 }

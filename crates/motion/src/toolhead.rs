@@ -38,6 +38,27 @@ pub enum MoveError {
     NotFinite,
 }
 
+/// A move whose speed a machine limit cut hard (below [`SLOW_MOVE_FRACTION`] of the requested speed).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlowMove {
+    /// The move's origin (a G-code line).
+    pub origin: u64,
+    pub requested: f64,
+    pub allowed: f64,
+}
+
+/// A move counts as slowed hard when a limit leaves it less than this share of its requested speed.
+pub const SLOW_MOVE_FRACTION: f64 = 0.25;
+/// How many slowed moves are kept for reporting (all are counted).
+const SLOW_MOVES_KEPT: usize = 1000;
+
+/// Moves slowed hard by machine limits: the first few, and how many in all.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SlowMoves {
+    pub first: Vec<SlowMove>,
+    pub total: u64,
+}
+
 /// The toolhead state machine.
 #[derive(Debug)]
 pub struct Toolhead<'k, S: MoveSink> {
@@ -55,6 +76,7 @@ pub struct Toolhead<'k, S: MoveSink> {
     clock: StepGenClock,
     /// Print time above which the next move checks for a pause (Klipper's `need_check_pause`).
     need_check_pause: f64,
+    slow_moves: SlowMoves,
 }
 
 /// Klipper's motion-queuing bookkeeping: how far step generation has been flushed. In batch mode
@@ -85,6 +107,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
                 timer_due: false,
             },
             need_check_pause: -1.0,
+            slow_moves: SlowMoves::default(),
             config,
             kinematics,
             sink,
@@ -112,11 +135,15 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         &self.sink
     }
 
+    pub fn slow_moves(&self) -> &SlowMoves {
+        &self.slow_moves
+    }
+
     /// Finish: plan and hand over every queued move (a stop after the last one).
-    pub fn finish(mut self) -> (S, f64) {
+    pub fn finish(mut self) -> (S, f64, SlowMoves) {
         self.flush_lookahead();
         self.sink.flush(self.print_time);
-        (self.sink, self.print_time)
+        (self.sink, self.print_time, self.slow_moves)
     }
 
     /// Change velocity limits (`SET_VELOCITY_LIMIT`, `M204`); queued moves keep the limits they were made with.
@@ -138,6 +165,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         if mv.axes_d[3] != 0.0 {
             check_extrusion(self.config.extruder.as_ref(), &mut mv)?;
         }
+        self.note_if_slowed(&mv, speed);
         self.commanded_pos = mv.end_pos;
         if let Some(prev) = self.lookahead.last() {
             let extruder_v2 = extruder_junction_v2(self.config.extruder.as_ref(), prev, &mv);
@@ -150,6 +178,21 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             self.check_pause();
         }
         Ok(())
+    }
+
+    fn note_if_slowed(&mut self, mv: &Move, speed: f64) {
+        let requested = speed.min(self.limits.max_velocity);
+        let threshold = SLOW_MOVE_FRACTION * requested;
+        if mv.is_kinematic && mv.max_cruise_v2 < threshold * threshold {
+            self.slow_moves.total += 1;
+            if self.slow_moves.first.len() < SLOW_MOVES_KEPT {
+                self.slow_moves.first.push(SlowMove {
+                    origin: mv.origin,
+                    requested,
+                    allowed: mv.max_cruise_v2.sqrt(),
+                });
+            }
+        }
     }
 
     /// Reachability along the whole segment, then the Z speed limits.
@@ -192,6 +235,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let need = self.clock.need_step_gen_time;
         self.advance_flush_time(need, 0.0);
         self.commanded_pos[..3].copy_from_slice(&xyz);
+        self.sink.set_position(xyz, self.commanded_pos[3]);
     }
 
     /// In batch mode: Klipper read another 4096-byte block of input, and its reactor ran due timers first.

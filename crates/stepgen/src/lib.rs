@@ -5,25 +5,34 @@
 //! clock ticks, and the step+dir+step filter. Closed forms are used where they exist (Cartesian axes and the
 //! extruder, polar arm and bed); other motors use a bracketed solver over [`kinematics::Kinematics`].
 //!
-//! Entry points: [`StepGenerator`] (all motors, parallel, streaming in chunks) or [`MotorStepper`] (one
-//! motor); steps go to a [`StepSink`] per motor ([`StepFileWriter`], [`StepStats`], `Vec<Step>`, ...).
+//! Entry points: [`StepPipeline`] (a `trapq::MoveSink` for the planner), [`StepGenerator`] (all motors,
+//! parallel over motors, chunks of pieces) or [`MotorStepper`] (one motor); steps go to a [`StepSink`] per
+//! motor ([`StepFileWriter`], [`StepStats`], `Vec<Step>`, ...), deterministically whatever the thread count.
+//!
+//! A move passing exactly through the polar rotation centre is refused with
+//! [`StepError::ThroughCentre`] (the bed angle is undefined there; Klipper fails too); passes any distance
+//! away, however small, are solved exactly (bed steps may then share a clock tick).
 
 mod error;
+mod files;
 mod filter;
 mod general;
 mod generator;
 mod motor;
 mod moves_csv;
+mod pipeline;
 mod sink;
 mod stats;
 mod timing;
 mod writer;
 
 pub use error::{MovesCsvError, StepError, StepFileError};
+pub use files::{FileAndStats, finish_step_files, step_file_sinks};
 pub use filter::StepFilter;
 pub use generator::{ExtruderSpec, StepGenerator};
 pub use motor::{MotorModel, MotorSpec, MotorStepper, REVERSAL_MARGIN, StepGenConfig};
 pub use moves_csv::{parse_row, read_moves_csv};
+pub use pipeline::StepPipeline;
 pub use sink::{CountSink, Step, StepSink, Tee};
 pub use stats::{MotorStats, StepStats};
 pub use writer::{StepFileWriter, read_step_file};

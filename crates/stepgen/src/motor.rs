@@ -375,6 +375,11 @@ impl MotorStepper {
         sink: &mut S,
     ) -> Result<(), StepError> {
         let line = PlaneLine::new(piece, centre);
+        if line.uu == 0.0 {
+            // No XY motion (a Z move): the angle cannot change, even when parked at the centre. Klipper
+            // skips such moves for XY steppers too.
+            return Ok(());
+        }
         let qa = line.point(span.d0);
         let qb = line.point(span.d1);
         let through_centre = line.cross == 0.0 && {

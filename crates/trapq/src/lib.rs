@@ -124,11 +124,54 @@ pub trait MoveSink {
     fn append(&mut self, queue: Queue, mv: &TrapezoidMove);
     /// Every move that starts before `print_time` has been appended: consumers may finish work up to it.
     fn flush(&mut self, _print_time: f64) {}
+    /// The toolhead was declared to be at `xyz` without moving (homing, `SET_KINEMATIC_POSITION`), after every
+    /// earlier move was appended; `e` is the extruder position.
+    fn set_position(&mut self, _xyz: Vec3, _e: f64) {}
 }
 
 impl<F: FnMut(Queue, &TrapezoidMove)> MoveSink for F {
     fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
         self(queue, mv)
+    }
+}
+
+/// A consumer that ignores everything (planning for its own sake: checks, timing).
+impl MoveSink for () {
+    fn append(&mut self, _queue: Queue, _mv: &TrapezoidMove) {}
+}
+
+/// An optional consumer: `None` ignores everything.
+impl<S: MoveSink> MoveSink for Option<S> {
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
+        if let Some(sink) = self {
+            sink.append(queue, mv);
+        }
+    }
+    fn flush(&mut self, print_time: f64) {
+        if let Some(sink) = self {
+            sink.flush(print_time);
+        }
+    }
+    fn set_position(&mut self, xyz: Vec3, e: f64) {
+        if let Some(sink) = self {
+            sink.set_position(xyz, e);
+        }
+    }
+}
+
+/// Two consumers fed the same moves, in order.
+impl<A: MoveSink, B: MoveSink> MoveSink for (A, B) {
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
+        self.0.append(queue, mv);
+        self.1.append(queue, mv);
+    }
+    fn flush(&mut self, print_time: f64) {
+        self.0.flush(print_time);
+        self.1.flush(print_time);
+    }
+    fn set_position(&mut self, xyz: Vec3, e: f64) {
+        self.0.set_position(xyz, e);
+        self.1.set_position(xyz, e);
     }
 }
 

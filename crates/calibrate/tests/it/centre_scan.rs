@@ -210,3 +210,37 @@ fn exact_detections_from_the_geometry_give_the_offsets_exactly() {
     let (rho, alpha) = (95.0 + 0.7 * (5.0f64 * 1.3).sin(), 2.5 + 0.05 * 5.0f64.cos());
     assert!((m5[0] - rho * alpha.cos()).abs() < 1e-9 && (m5[1] - rho * alpha.sin()).abs() < 1e-9);
 }
+
+#[test]
+fn a_small_inner_ring_serves_arms_that_barely_pass_the_centre() {
+    // A printer whose arm reaches only ~20 mm past the centre: four magnets on a 10 mm ring.
+    let mut errors = Vec::new();
+    for seed in 0..40u64 {
+        let cfg = HallBedConfig {
+            magnet_count: 4,
+            ring_radius: 10.0,
+            arm_min: -20.0,
+            arm_max: 30.0,
+            ..HallBedConfig::default()
+        }
+        .random_offsets(2.0, 500 + seed);
+        let (dx, dy) = (cfg.arm_zero_offset, cfg.arm_lateral_offset);
+        let mut machine = HallScanner::new(cfg).expect("valid sim");
+        let params = ScanParams {
+            magnet_count: 4,
+            ring_radius: 10.0,
+            arm_home: 20.0,
+            arm_min: -20.0,
+            ..ScanParams::default()
+        };
+        let r = scan_centre(&mut machine, &params).expect("scan succeeds");
+        assert_eq!(r.pairs_used, 4);
+        errors.push((r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy));
+    }
+    let p95 = percentile(errors.clone(), 0.95);
+    println!(
+        "inner ring 4 × Ø3×5 at 10 mm: p50 {:.4} mm, p95 {p95:.4} mm",
+        percentile(errors, 0.5)
+    );
+    assert!(p95 <= 0.02, "p95 {p95}");
+}

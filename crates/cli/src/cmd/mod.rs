@@ -3,6 +3,7 @@
 pub mod demo;
 pub mod run;
 pub mod stats;
+pub mod workspace;
 
 /// Convert an `anyhow` error into a report (plain message, with its causes).
 pub fn plain(e: anyhow::Error) -> miette::Report {

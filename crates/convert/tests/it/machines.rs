@@ -7,7 +7,12 @@ use kinematics::scara::Scara;
 use kinematics::{ElbowBranch, PolarParams, ScaraFrame, ScaraParams, StepperParams};
 
 fn stepper(name: &str, step_distance: f64) -> StepperParams {
-    StepperParams { name: name.into(), step_distance, position_min: None, position_max: None }
+    StepperParams {
+        name: name.into(),
+        step_distance,
+        position_min: None,
+        position_max: None,
+    }
 }
 
 /// Klipper's `example-polar.cfg` steppers (16000 steps/rev bed, 80 steps/mm arm), no assembly offsets.

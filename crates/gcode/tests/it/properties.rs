@@ -4,12 +4,44 @@
 use gcode::{Command, Commands, Reader, Writer, WriterOptions, file_stats, format_number};
 use proptest::prelude::*;
 
-/// Drives every stage over `input`; must never panic, whatever the bytes.
+/// Every number a command carries is finite (an impossible value is an error, never NaN or inf).
+fn all_finite(command: &Command) -> bool {
+    let finite = |values: &[f64]| values.iter().all(|v| v.is_finite());
+    let finite_opt = |values: &[Option<f64>]| values.iter().flatten().all(|v| v.is_finite());
+    match command {
+        Command::Move(m) => finite(&m.target) && finite(&[m.feed]),
+        Command::Arc(a) => {
+            finite(&a.start)
+                && finite(&a.target)
+                && finite(&a.centre)
+                && finite(&a.offset)
+                && a.feed.is_finite()
+        }
+        Command::Dwell { seconds } => seconds.is_finite(),
+        Command::SetPosition { position } => finite_opt(position),
+        Command::SetKinematicPosition { position } => finite_opt(position),
+        Command::SetAccel(p) => finite_opt(&[p.s, p.p, p.t, p.r]),
+        Command::SetVelocityLimit(v) => finite_opt(&[
+            v.velocity,
+            v.accel,
+            v.square_corner_velocity,
+            v.minimum_cruise_ratio,
+            v.accel_to_decel,
+        ]),
+        Command::SpeedFactor(v) | Command::ExtrudeFactor(v) => v.is_finite(),
+        Command::Home { .. } | Command::WaitForMoves | Command::Other { .. } | Command::Meta(_) => {
+            true
+        }
+    }
+}
+
+/// Drives every stage over `input`; must never panic, whatever the bytes, nor yield a non-finite value.
 fn exercise(input: &[u8]) {
     for result in Commands::from_reader(input, "fuzz") {
-        if let Err(err) = result {
+        match result {
+            Ok(command) => assert!(all_finite(&command.value), "{:?}", command.value),
             // Display must work on any error (it is what the CLI prints).
-            let _ = err.to_string();
+            Err(err) => assert!(!err.to_string().is_empty()),
         }
     }
     let mut reader = Reader::new(input, "fuzz");
@@ -41,6 +73,9 @@ fn gcode_like() -> impl Strategy<Value = Vec<u8>> {
         Just("SET_KINEMATIC_POSITION X=".to_owned()),
         Just("\"".to_owned()),
         "[XYZEFIJRPS][-+]?[0-9]{0,4}(\\.[0-9]{0,4})?".prop_map(|s| s),
+        "[XYZEFIJRS]9{300,310}".prop_map(|s| s),
+        Just("G20\n".to_owned()),
+        Just("M220 S".to_owned()),
         "[ \t\r\n]".prop_map(|s| s),
     ];
     proptest::collection::vec(piece, 0..40).prop_map(|pieces| pieces.concat().into_bytes())

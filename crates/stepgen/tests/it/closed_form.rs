@@ -273,3 +273,98 @@ fn output_is_identical_whatever_the_thread_count() {
     assert_eq!(one, in_pool(2));
     assert_eq!(one, in_pool(4));
 }
+
+#[test]
+fn radial_move_then_z_move_near_the_centre() {
+    // In to 0.5 mm from the centre along the arm (9.5 mm: 760 arm steps), then 1 mm up (400 Z steps):
+    // the bed never turns.
+    let kin = machines::polar(std::f64::consts::TAU / 16000.0, 0.0125, 0.0025);
+    let to_centre = cruise(1.0, 0.5, [10.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 19.0);
+    let lift = cruise(1.6, 0.1, [0.5, 0.0, 0.0], [0.0, 0.0, 1.0], 10.0);
+    let steps = run(
+        kin.as_ref(),
+        [10.0, 0.0, 0.0],
+        &[(Queue::Toolhead, to_centre), (Queue::Toolhead, lift)],
+    )
+    .expect("no centre pass");
+    assert!(steps[0].is_empty());
+    assert_eq!(steps[1].len(), 760);
+    assert_eq!(steps[2].len(), 400);
+}
+
+#[test]
+fn pipeline_writes_step_files_and_statistics() {
+    use trapq::MoveSink;
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let names: Vec<String> = ["stepper_x", "stepper_y", "stepper_z"]
+        .map(String::from)
+        .to_vec();
+    let sinks = stepgen::step_file_sinks(dir.path(), &names, true, HZ).expect("files");
+    let mut pipeline =
+        stepgen::StepPipeline::new(kin.as_ref(), None, StepGenConfig::default(), sinks);
+    assert_eq!(pipeline.motor_names(), names);
+    pipeline.set_position([0.0; 3], 0.0);
+    // 1 mm along X at 10 mm/s (80 steps 0.00125 s apart), then 1 mm back.
+    pipeline.append(
+        Queue::Toolhead,
+        &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+    );
+    pipeline.append(
+        Queue::Toolhead,
+        &cruise(1.1, 0.1, [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 10.0),
+    );
+    let (sinks, filtered) = pipeline.finish().expect("steps");
+    let stats = stepgen::finish_step_files(&names, sinks, &filtered, HZ).expect("files written");
+    let (name, x) = &stats[0];
+    assert_eq!(name, "stepper_x");
+    assert_eq!((x.steps, x.net_steps, x.filtered_pairs), (160, 0, 0));
+    assert_eq!(x.first_clock, Some(clock(1.0 + 0.000625)));
+    assert_eq!(x.min_interval_ticks, Some(20_000));
+    assert_eq!(x.peak_rate_min_interval, 800.0);
+    assert_eq!(x.peak_rate_1ms, 1000.0);
+    let back = stepgen::read_step_file(dir.path().join("stepper_x.txt.gz")).expect("read back");
+    assert_eq!(back.len(), 160);
+    assert!(back[..80].iter().all(|s| s.dir) && back[80..].iter().all(|s| !s.dir));
+    assert_eq!(stats[1].1.steps, 0);
+}
+
+#[test]
+fn pipeline_restarts_motors_at_a_declared_position() {
+    use trapq::MoveSink;
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let mut pipeline = stepgen::StepPipeline::new(
+        kin.as_ref(),
+        None,
+        StepGenConfig::default(),
+        vec![Vec::new(); 3],
+    );
+    // Moves before any declared pose are an error at the end.
+    pipeline.append(
+        Queue::Toolhead,
+        &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+    );
+    assert!(matches!(pipeline.finish(), Err(StepError::NoStartPose)));
+
+    let mut pipeline = stepgen::StepPipeline::new(
+        kin.as_ref(),
+        None,
+        StepGenConfig::default(),
+        vec![Vec::new(); 3],
+    );
+    pipeline.set_position([0.0; 3], 0.0);
+    pipeline.append(
+        Queue::Toolhead,
+        &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+    );
+    // X is declared to be 5 (no motion), then moves on from there: no burst of steps for the jump.
+    pipeline.set_position([5.0, 0.0, 0.0], 0.0);
+    pipeline.append(
+        Queue::Toolhead,
+        &cruise(2.0, 0.1, [5.0, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0),
+    );
+    let (sinks, _) = pipeline.finish().expect("steps");
+    assert_eq!(sinks[0].len(), 160);
+    assert!(sinks[0].iter().all(|s| s.dir));
+    assert_eq!(sinks[0][80].clock, clock(2.0 + 0.000625));
+}

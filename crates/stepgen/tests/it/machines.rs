@@ -72,3 +72,15 @@ pub fn scara_fekt(
             .with_fekt_cos_quirk(true),
     )
 }
+
+/// A polar machine with assembly offsets: its bed and arm have no closed form (general solver).
+pub fn polar_with_offsets(zero_offset: f64, lateral_offset: f64) -> Box<dyn Kinematics> {
+    let params = PolarParams {
+        bed: stepper("stepper_bed", std::f64::consts::TAU / 16000.0),
+        arm: stepper("stepper_arm", 0.0125),
+        z: stepper("stepper_z", 0.0025),
+        arm_zero_offset: zero_offset,
+        arm_lateral_offset: lateral_offset,
+    };
+    kinematics::build(&MachineParams::Polar(params)).expect("valid polar parameters")
+}

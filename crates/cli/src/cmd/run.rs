@@ -1,0 +1,372 @@
+//! `jointspace run` (plan + every motor step) and `jointspace check` (plan only, list every problem).
+
+use crate::{diag, input};
+use motion::machine::{CheckReport, MachineSetup, Severity, check_gcode, plan_gcode};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+use stepgen::{ExtruderSpec, MotorStats, StepFileWriter, StepGenConfig, StepPipeline, StepSink, StepStats};
+
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    /// Printer configuration (Klipper's printer.cfg format).
+    #[arg(short = 'c', long = "config")]
+    pub config: PathBuf,
+    /// G-code file (`-` for standard input).
+    pub file: PathBuf,
+    /// Write one step file per motor into DIR: a line `clock dir` per step (dir 1 = position increases).
+    #[arg(long, value_name = "DIR")]
+    pub steps: Option<PathBuf>,
+    /// Write the planned moves as CSV (the columns of Klipper's trapq_append).
+    #[arg(long, value_name = "FILE")]
+    pub moves: Option<PathBuf>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// MCU clock frequency used for step clocks.
+    #[arg(long, default_value_t = 16_000_000.0, value_name = "HZ")]
+    pub clock_hz: f64,
+    /// Skip unreachable moves (reported as warnings) instead of stopping at the first.
+    #[arg(long)]
+    pub skip_unreachable: bool,
+    /// Reproduce Klipper's batch-mode flushing (`klippy.py -i`), for comparisons with Klipper's output.
+    #[arg(long)]
+    pub klipper_batch: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CheckArgs {
+    /// Printer configuration (Klipper's printer.cfg format).
+    #[arg(short = 'c', long = "config")]
+    pub config: PathBuf,
+    /// G-code file (`-` for standard input).
+    pub file: PathBuf,
+    /// Most problems to list.
+    #[arg(long, default_value_t = 200)]
+    pub max_problems: usize,
+}
+
+/// Load `printer.cfg` and build the machine, with diagnostics pointing into the file.
+pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, MachineSetup)> {
+    let machine = config::MachineConfig::load(path).map_err(|e| miette::Report::new(diag::config_error(&e)))?;
+    let setup = MachineSetup::from_config(&machine)
+        .map_err(|e| miette::miette!("{}: {e}", path.display()))?;
+    Ok((machine, setup))
+}
+
+/// One motor's sink: statistics, plus its step file when asked for.
+#[derive(Debug)]
+struct MotorSink {
+    stats: StepStats,
+    file: Option<StepFileWriter>,
+}
+
+impl StepSink for MotorSink {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        self.stats.step(clock, dir);
+        if let Some(file) = &mut self.file {
+            file.step(clock, dir);
+        }
+    }
+}
+
+#[derive(Debug, Serialize)]
+pub struct MotorSummary {
+    pub name: String,
+    pub steps: u64,
+    pub net_steps: i64,
+    pub min_interval_ticks: Option<u64>,
+    pub peak_rate_min_interval: Option<f64>,
+    pub peak_rate_1ms: f64,
+    pub filtered_pairs: u64,
+    /// The motor's configured step-rate limit, when set and exceeded.
+    pub over_max_step_rate: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct WarningLine {
+    pub line: u64,
+    pub column: u32,
+    pub message: String,
+}
+
+#[derive(Debug, Serialize)]
+pub struct RunSummary {
+    pub file: String,
+    pub config: String,
+    pub kinematics: String,
+    pub print_time_s: f64,
+    pub toolhead_moves: u64,
+    pub extruder_moves: u64,
+    pub total_steps: u64,
+    pub motors: Vec<MotorSummary>,
+    pub slowed_moves: u64,
+    pub warnings: Vec<WarningLine>,
+    pub wall_time_s: f64,
+}
+
+/// Counts planned moves on the way through.
+#[derive(Debug, Default)]
+struct MoveCounter {
+    toolhead: u64,
+    extruder: u64,
+}
+
+impl trapq::MoveSink for MoveCounter {
+    fn append(&mut self, queue: trapq::Queue, _mv: &trapq::TrapezoidMove) {
+        match queue {
+            trapq::Queue::Toolhead => self.toolhead += 1,
+            trapq::Queue::Extruder => self.extruder += 1,
+        }
+    }
+}
+
+/// What `run` needs besides the machine and the G-code.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    pub steps: Option<PathBuf>,
+    pub moves: Option<PathBuf>,
+    pub clock_hz: f64,
+    pub skip_unreachable: bool,
+    pub klipper_batch: bool,
+}
+
+pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
+    if !(args.clock_hz > 0.0 && args.clock_hz.is_finite()) {
+        return Err(miette::miette!("--clock-hz must be a positive number"));
+    }
+    let (machine, setup) = load_machine(&args.config)?;
+    let options = RunOptions {
+        steps: args.steps.clone(),
+        moves: args.moves.clone(),
+        clock_hz: args.clock_hz,
+        skip_unreachable: args.skip_unreachable,
+        klipper_batch: args.klipper_batch,
+    };
+    let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
+    let result = execute(&machine, setup, reader, &name, &args.config.display().to_string(), &options);
+    bar.finish_and_clear();
+    let report = result.map_err(|e| match e {
+        ExecuteError::Pipeline(e) => pipeline_error(&args.file, e),
+        ExecuteError::Other(report) => report,
+    })?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?);
+    } else {
+        print!("{}", render(&report));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Why [`execute`] failed: a planning error (rendered against the G-code file) or anything else.
+#[derive(Debug)]
+pub enum ExecuteError {
+    Pipeline(motion::machine::PipelineError),
+    Other(miette::Report),
+}
+
+impl From<miette::Report> for ExecuteError {
+    fn from(r: miette::Report) -> Self {
+        ExecuteError::Other(r)
+    }
+}
+
+/// Plan `input` on the machine and generate every motor's steps; the summary of the run.
+pub fn execute(
+    machine: &config::MachineConfig,
+    mut setup: MachineSetup,
+    input: impl std::io::BufRead,
+    name: &str,
+    config_name: &str,
+    options: &RunOptions,
+) -> Result<RunSummary, ExecuteError> {
+    let started = Instant::now();
+    setup.planner.skip_unreachable = options.skip_unreachable;
+    setup.planner.klipper_batch_flush = options.klipper_batch;
+    let extruder = machine.extruder.as_ref().map(|e| ExtruderSpec {
+        name: e.stepper.name.clone(),
+        step_distance: e.stepper.step_distance,
+        start_position: 0.0,
+    });
+    let motor_names: Vec<String> = setup
+        .kinematics
+        .motors()
+        .iter()
+        .map(|m| m.name.clone())
+        .chain(extruder.iter().map(|e| e.name.clone()))
+        .collect();
+    let step_dir = options.steps.as_deref();
+    if let Some(dir) = step_dir {
+        std::fs::create_dir_all(dir).map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
+    }
+    let mut sinks = Vec::with_capacity(motor_names.len());
+    for name in &motor_names {
+        let file = match step_dir {
+            Some(dir) => Some(
+                StepFileWriter::create(dir.join(format!("{name}.txt"))).map_err(|e| miette::miette!("{e}"))?,
+            ),
+            None => None,
+        };
+        sinks.push(MotorSink { stats: StepStats::new(options.clock_hz), file });
+    }
+    let config = StepGenConfig { clock_hz: options.clock_hz, ..StepGenConfig::default() };
+    let pipeline = StepPipeline::new(setup.kinematics.as_ref(), extruder, config, sinks);
+    let csv = match &options.moves {
+        Some(path) => Some(CsvFile::create(path)?),
+        None => None,
+    };
+    let (((pipeline, counter), csv), summary) =
+        plan_gcode(&setup, input, name, ((pipeline, MoveCounter::default()), csv)).map_err(ExecuteError::Pipeline)?;
+    let (sinks, filtered) = pipeline.finish().map_err(|e| miette::miette!("step generation failed: {e}"))?;
+    if let Some(csv) = csv {
+        csv.finish()?;
+    }
+    let mut motors = Vec::with_capacity(sinks.len());
+    for ((sink, name), filtered_pairs) in sinks.into_iter().zip(&motor_names).zip(filtered) {
+        if let Some(file) = sink.file {
+            file.finish().map_err(|e| miette::miette!("{e}"))?;
+        }
+        let stats: MotorStats = sink.stats.summary(options.clock_hz, filtered_pairs);
+        let limit = machine.stepper(name).and_then(|s| s.max_step_rate).or(machine.limits.max_step_rate);
+        motors.push(MotorSummary {
+            name: name.clone(),
+            steps: stats.steps,
+            net_steps: stats.net_steps,
+            min_interval_ticks: stats.min_interval_ticks,
+            peak_rate_min_interval: stats.peak_rate_min_interval.is_finite().then_some(stats.peak_rate_min_interval),
+            peak_rate_1ms: stats.peak_rate_1ms,
+            filtered_pairs,
+            over_max_step_rate: limit.filter(|l| stats.peak_rate_1ms > *l),
+        });
+    }
+    let mut warnings: Vec<WarningLine> = summary
+        .warnings
+        .iter()
+        .map(|w| WarningLine { line: w.span.line, column: w.span.column, message: w.message.clone() })
+        .chain(summary.gcode_warnings.iter().map(|w| WarningLine {
+            line: w.span.line,
+            column: w.span.column,
+            message: w.to_string(),
+        }))
+        .collect();
+    warnings.sort_by_key(|w| (w.line, w.column));
+    Ok(RunSummary {
+        file: name.to_string(),
+        config: config_name.to_string(),
+        kinematics: machine.kinematics.name().to_string(),
+        print_time_s: summary.end_time,
+        toolhead_moves: counter.toolhead,
+        extruder_moves: counter.extruder,
+        total_steps: motors.iter().map(|m| m.steps).sum(),
+        motors,
+        slowed_moves: summary.slow_moves.total,
+        warnings,
+        wall_time_s: started.elapsed().as_secs_f64(),
+    })
+}
+
+pub fn render(r: &RunSummary) -> String {
+    let mut out = format!("{} on {} ({})\n", r.file, r.config, r.kinematics);
+    let total = r.print_time_s.max(0.0);
+    out += &format!(
+        "  print time   {:.1} s ({}h{:02}m{:02}s)\n",
+        total,
+        (total / 3600.0) as u64,
+        ((total % 3600.0) / 60.0) as u64,
+        (total % 60.0) as u64
+    );
+    out += &format!("  moves        {} toolhead, {} extruder\n", r.toolhead_moves, r.extruder_moves);
+    out += &format!("  steps        {} in all, computed in {:.3} s\n", r.total_steps, r.wall_time_s);
+    out += "  motor             steps        net   peak rate (1 ms)   min interval\n";
+    for m in &r.motors {
+        let interval = m.min_interval_ticks.map_or("-".to_string(), |t| format!("{t} ticks"));
+        out += &format!(
+            "  {:<14} {:>9} {:>10} {:>12.0} steps/s   {:>12}\n",
+            m.name, m.steps, m.net_steps, m.peak_rate_1ms, interval
+        );
+        if let Some(limit) = m.over_max_step_rate {
+            out += &format!("    warning: {} exceeds its max_step_rate of {limit:.0} steps/s\n", m.name);
+        }
+        if m.filtered_pairs > 0 {
+            out += &format!("    {} step pairs removed by the step+dir+step filter\n", m.filtered_pairs);
+        }
+    }
+    if r.slowed_moves > 0 {
+        out += &format!("  {} moves slowed below 25% of their requested speed by machine limits\n", r.slowed_moves);
+    }
+    for w in r.warnings.iter().take(20) {
+        out += &format!("  warning: line {}:{}: {}\n", w.line, w.column, w.message);
+    }
+    if r.warnings.len() > 20 {
+        out += &format!("  … and {} more warnings (see --json)\n", r.warnings.len() - 20);
+    }
+    out
+}
+
+/// The moves CSV: written to a temporary file and renamed into place when complete.
+#[derive(Debug)]
+struct CsvFile {
+    sink: motion::csv::CsvSink<std::io::BufWriter<tempfile::NamedTempFile>>,
+    path: PathBuf,
+}
+
+impl CsvFile {
+    fn create(path: &Path) -> miette::Result<Self> {
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let temp = tempfile::NamedTempFile::new_in(dir)
+            .map_err(|e| miette::miette!("cannot write {}: {e}", path.display()))?;
+        Ok(CsvFile { sink: motion::csv::CsvSink::new(std::io::BufWriter::new(temp)), path: path.to_path_buf() })
+    }
+
+    fn finish(self) -> miette::Result<()> {
+        let path = self.path;
+        let fail = |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
+        let writer = self.sink.finish().map_err(|e| fail(&e))?;
+        let temp = writer.into_inner().map_err(|e| fail(&e))?;
+        temp.persist(&path).map_err(|e| fail(&e))?;
+        Ok(())
+    }
+}
+
+impl trapq::MoveSink for CsvFile {
+    fn append(&mut self, queue: trapq::Queue, mv: &trapq::TrapezoidMove) {
+        self.sink.append(queue, mv);
+    }
+}
+
+/// A planning error as a diagnostic on the G-code line.
+pub fn pipeline_error(file: &Path, e: motion::machine::PipelineError) -> miette::Report {
+    match e {
+        motion::machine::PipelineError::Gcode(e) => miette::Report::new(diag::gcode_error(&e)),
+        motion::machine::PipelineError::Plan(e) => {
+            miette::Report::new(diag::at_gcode_line(file, e.span, e.kind.to_string(), "this move".into()))
+        }
+    }
+}
+
+pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
+    let (_, setup) = load_machine(&args.config)?;
+    let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
+    let report: CheckReport = check_gcode(&setup, reader, &name, args.max_problems);
+    bar.finish_and_clear();
+    for p in &report.problems {
+        let label = match p.severity {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        };
+        println!("{name}:{}:{}: {label}: {}", p.span.line, p.span.column, p.message);
+    }
+    let errors = report.errors();
+    println!(
+        "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
+        report.problems.len() - errors,
+        report.end_time,
+        report.slow_moves
+    );
+    Ok(if errors > 0 { ExitCode::FAILURE } else { ExitCode::SUCCESS })
+}

@@ -9,7 +9,8 @@
 //!   `M220/M221` likewise (already in the feed and E).
 //! - Every converted motion line is `G1` (so every line's `F` has the same meaning); the one exception is the
 //!   first move after the start or a `G28`, whose start point is unknown: it is written as a single `G0`
-//!   without `F` (a positioning move; its path is not defined by the input either).
+//!   without `F` (a positioning move; its path is not defined by the input either). Until a move names X
+//!   or Y, such moves write only Z and E.
 //! - `G92 E` is written through; `G92 X/Y/Z` only renames coordinates (the interpreter has applied it) and is
 //!   kept as a comment; `SET_KINEMATIC_POSITION` is refused.
 //! - A move through the exact polar centre is cut there and the bed turns by the shortest rotation in a
@@ -162,10 +163,7 @@ impl<W: Write> Converter<W> {
             Extrusion::Relative => "M83",
             Extrusion::Absolute => "M82",
         };
-        writeln!(
-            self.out,
-            "; converted by jointspace: motor-space output, absolute axes"
-        )?;
+        writeln!(self.out, "; converted by jointspace")?;
         writeln!(self.out, "G90\n{e_mode}")?;
         if self.options.feed == FeedMode::InverseTime {
             writeln!(self.out, "G93")?;
@@ -235,6 +233,9 @@ impl<W: Write> Converter<W> {
     fn straight(&mut self, span: Span, m: &Move) -> Result<(), ConvertError> {
         let target = self.placed(m.target);
         let Some(start) = self.position else {
+            if !(m.named[0] || m.named[1]) {
+                return self.write_z_and_e_only(span, m);
+            }
             return self.positioning_move(span, target);
         };
         self.stats.moves += 1;
@@ -299,7 +300,7 @@ impl<W: Write> Converter<W> {
                 return Err(ConvertError::Unreachable { span, reason });
             }
         }
-        // Kinematics that accept the centre on a segment: find it from the map's declared centre.
+        // Lines that miss the declared centre by a hair count as crossing it (see CENTRE_SNAP).
         let Some(c) = self.map.centre() else {
             return Ok(None);
         };
@@ -331,7 +332,7 @@ impl<W: Write> Converter<W> {
         let mut s = 0.0;
         if self.at_centre || crossing.is_some_and(|t| t <= gap) {
             s = gap;
-            self.flip(span, path, s)?;
+            self.flip(span, path, s, feed)?;
         }
         if let Some(t) = crossing.filter(|&t| t > gap) {
             let ends_at_centre = t + gap >= 1.0;
@@ -342,7 +343,7 @@ impl<W: Write> Converter<W> {
                 return Ok(());
             }
             s = t + gap;
-            self.flip(span, path, s)?;
+            self.flip(span, path, s, feed)?;
         }
         self.cut_and_write(span, path, (s, 1.0), e, feed, true)?;
         self.at_centre = false;
@@ -350,7 +351,7 @@ impl<W: Write> Converter<W> {
     }
 
     /// Rotate in place at the centre to the axes of `path.point(s)`, the nearest equivalent angle.
-    fn flip(&mut self, span: Span, path: &Path, s: f64) -> Result<(), ConvertError> {
+    fn flip(&mut self, span: Span, path: &Path, s: f64, feed: f64) -> Result<(), ConvertError> {
         let to = self
             .map
             .to_axes(path.point(s), self.axes)
@@ -361,10 +362,11 @@ impl<W: Write> Converter<W> {
             .fold(0.0, f64::max);
         self.axes = to;
         self.at_centre = false;
-        let time = turn / self.options.flip_speed;
-        let z = self.position.map_or(0.0, |p| p[2]);
+        // A machine without rotary output axes (corrected Cartesian) only crosses the gap.
+        let time = (turn / self.options.flip_speed).max(2.0 * CENTRE_GAP / feed);
+        let z = path.point(s)[2];
         let e_units = self.written.e;
-        if self.write_motion(to, z, e_units, time, self.options.flip_speed)? {
+        if self.write_motion(to, z, e_units, time, feed)? {
             self.stats.flips += 1;
         }
         Ok(())
@@ -505,6 +507,42 @@ impl<W: Write> Converter<W> {
         self.written.axes = written_axes;
         self.written.z = z;
         self.written.z_known = true;
+        self.written.e = e;
+        Ok(())
+    }
+
+    /// A move naming neither X nor Y while XY is unknown (`G1 Z5` after homing, a retraction): XY stays
+    /// unknown (the interpreter's XY here is not where the machine is). A Z move is a positioning `G0 Z`;
+    /// an extrude-only move is an ordinary timed `G1 E`.
+    fn write_z_and_e_only(&mut self, span: Span, m: &Move) -> Result<(), ConvertError> {
+        let e = to_units(m.target[3], self.options.decimals.extrusion);
+        let de = (e - self.written.e) as f64 / scale(self.options.decimals.extrusion);
+        self.buf.clear();
+        if m.named[2] {
+            let z = to_units(m.target[2], self.options.decimals.linear);
+            self.buf.extend_from_slice(b"G0");
+            push_word(&mut self.buf, 'Z', z, self.options.decimals.linear);
+            self.push_e(e);
+            self.written.z = z;
+            self.written.z_known = true;
+            self.stats.positioning_moves += 1;
+        } else if de != 0.0 {
+            check_feed(span, m.feed)?;
+            self.buf.extend_from_slice(b"G1");
+            self.push_e(e);
+            let f = match self.options.feed {
+                FeedMode::InverseTime => m.feed / de.abs() * 60.0,
+                FeedMode::MotorSpace => m.feed * 60.0,
+            };
+            let f_decimals = feed_decimals(f);
+            self.buf.extend_from_slice(b" F");
+            push_units(&mut self.buf, to_units(f, f_decimals), f_decimals);
+            self.stats.segments += 1;
+        } else {
+            return Ok(());
+        }
+        self.buf.push(b'\n');
+        self.out.write_all(&self.buf)?;
         self.written.e = e;
         Ok(())
     }

@@ -7,6 +7,28 @@
 //! - [`AxisMap`]: what the output axes are (two motors of a [`kinematics::Kinematics`], or corrected
 //!   Cartesian XY); [`CentreCorrection`] builds the maps for an offset polar machine.
 //! - [`verify`]: replays written G-code through forward kinematics and measures the deviation densely.
+//!
+//! ```
+//! use std::sync::Arc;
+//! use convert::{AxisMap, ConvertOptions, Converter, Target, convert_gcode, read_commands, verify};
+//! use kinematics::{PolarParams, StepperParams, polar::Polar};
+//!
+//! let stepper = |name: &str| StepperParams { name: name.into(), step_distance: 0.01, position_min: None, position_max: None };
+//! let polar = Polar::new(PolarParams {
+//!     bed: stepper("stepper_bed"), arm: stepper("stepper_arm"), z: stepper("stepper_z"),
+//!     arm_zero_offset: 0.0, arm_lateral_offset: 0.0,
+//! }).unwrap();
+//! let map = AxisMap::motors(Arc::new(polar), Target::Cylindrical).unwrap();
+//! let options = ConvertOptions::default(); // X = radius, Y = bed angle in degrees, 0.005 mm
+//! let input = b"G0 X-20 Y5\nG1 X20 Y5 E2 F1800\n";
+//! let mut converter = Converter::new(map.clone(), options.clone(), Vec::new()).unwrap();
+//! convert_gcode(&input[..], "part.gcode", &mut converter).unwrap();
+//! let (output, stats) = converter.finish().unwrap();
+//! assert!(stats.segments > 10); // the line passes 5 mm from the centre
+//! let output = String::from_utf8(output).unwrap();
+//! let report = verify(&map, &options, &read_commands(&input[..], "part.gcode").unwrap(), &output).unwrap();
+//! assert!(report.max_deviation <= 0.005);
+//! ```
 
 pub mod axes;
 pub mod converter;

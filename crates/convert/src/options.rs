@@ -186,3 +186,26 @@ impl ConvertOptions {
         ]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_rounding_is_far_below_the_default_tolerance() {
+        let budget = ConvertOptions::default().rounding_budget([MotorUnit::Mm, MotorUnit::Rad]);
+        // 4 decimals of mm (0.5e-4) and 6 of a degree at 1 m (8.7e-6).
+        assert!((budget - 0.5e-4f64.hypot(0.5e-6f64.to_radians() * 1000.0)).abs() < 1e-12);
+        assert!(budget < Segmentation::DEFAULT_TOLERANCE / 50.0);
+    }
+
+    #[test]
+    fn placement_scales_then_translates() {
+        let options = ConvertOptions {
+            scale_xy: 0.5,
+            translate: [1.0, 130.0],
+            ..ConvertOptions::default()
+        };
+        assert_eq!(options.place([10.0, -4.0]), [6.0, 128.0]);
+    }
+}

@@ -204,3 +204,97 @@ fn shrink(target: f64, error: f64) -> f64 {
         0.5
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use kinematics::PolarParams;
+    use kinematics::StepperParams;
+    use kinematics::polar::Polar;
+
+    use super::*;
+    use crate::options::Target;
+
+    fn polar_map() -> AxisMap {
+        let stepper = |name: &str| StepperParams {
+            name: name.into(),
+            step_distance: 0.01,
+            position_min: None,
+            position_max: None,
+        };
+        let params = PolarParams {
+            bed: stepper("stepper_bed"),
+            arm: stepper("stepper_arm"),
+            z: stepper("stepper_z"),
+            arm_zero_offset: 0.0,
+            arm_lateral_offset: 0.0,
+        };
+        AxisMap::motors(
+            Arc::new(Polar::new(params).expect("valid")),
+            Target::Cylindrical,
+        )
+        .expect("map")
+    }
+
+    #[test]
+    fn balanced_pieces_are_equal_and_no_longer_than_asked() {
+        assert_eq!(balanced(1.0, 0.3), 0.25);
+        assert_eq!(balanced(1.0, 1.0), 1.0);
+        assert_eq!(balanced(0.9, 0.3), 0.3);
+    }
+
+    #[test]
+    fn pieces_are_short_near_the_centre_and_long_far_from_it() {
+        let map = polar_map();
+        let target = 0.004;
+        let mut lengths = Vec::new();
+        for offset in [2.0, 100.0] {
+            // A 40 mm line passing `offset` mm from the centre.
+            let path = Path::Line {
+                from: [-20.0, offset, 0.0],
+                to: [20.0, offset, 0.0],
+            };
+            let start = map.to_axes(path.point(0.0), [0.0; 2]).expect("reachable");
+            let mut cuts = Vec::new();
+            cut_adaptive(&path, &map, (0.0, start), 1.0, target, &mut cuts).expect("cut");
+            // Each piece, checked densely, stays within the target (with the probes' few percent).
+            let dense: Vec<f64> = (1..64).map(|i| f64::from(i) / 64.0).collect();
+            let mut from = (0.0, start);
+            for cut in &cuts {
+                let deviation =
+                    chord_deviation(&path, &map, from, (cut.s, cut.axes), &dense).expect("finite");
+                assert!(deviation <= target * 1.1, "offset {offset}: {deviation}");
+                from = (cut.s, cut.axes);
+            }
+            let mut s_prev = 0.0;
+            let shortest = cuts
+                .iter()
+                .map(|c| std::mem::replace(&mut s_prev, c.s))
+                .zip(cuts.iter())
+                .map(|(s0, c)| 40.0 * (c.s - s0))
+                .fold(f64::INFINITY, f64::min);
+            lengths.push(shortest);
+        }
+        // Chord error ∝ h²/ρ: at the closest approach, 50× farther allows ~√50 ≈ 7× longer pieces.
+        assert!(lengths[1] > 4.0 * lengths[0], "{lengths:?}");
+    }
+
+    #[test]
+    fn fixed_cut_has_equal_pieces() {
+        let map = polar_map();
+        let path = Path::Line {
+            from: [10.0, 0.0, 0.0],
+            to: [10.0, 10.0, 0.0],
+        };
+        let mut cuts = Vec::new();
+        cut_fixed(&path, &map, (0.0, [10.0, 0.0]), 1.0, 4, &mut cuts).expect("cut");
+        let s: Vec<f64> = cuts.iter().map(|c| c.s).collect();
+        assert_eq!(s, [0.25, 0.5, 0.75, 1.0]);
+        let last = cuts[3].axes;
+        assert!(
+            (last[0] - 200f64.sqrt()).abs() < 1e-12
+                && (last[1] - std::f64::consts::FRAC_PI_4).abs() < 1e-12
+        );
+    }
+}

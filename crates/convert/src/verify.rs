@@ -69,24 +69,23 @@ pub fn verify<'a>(
     output: &str,
 ) -> Result<VerifyReport, VerifyError> {
     let mut report = VerifyReport::default();
-    let mut moves = IntendedMoves::new(input.into_iter(), options);
+    let mut moves = Matcher {
+        moves: IntendedMoves::new(input.into_iter(), options),
+        window: VecDeque::new(),
+        // Segment ends lie on their path up to the output's rounding.
+        on_path: 3.0 * options.rounding_budget(map.units()) + 1e-9,
+        move_finished: false,
+    };
     let mut reader = OutputReader::new(map, options);
-    let mut window: VecDeque<Intended> = VecDeque::new();
     let mut squares = 0.0;
-    // Segment ends lie on their path up to the output's rounding.
-    let on_path = 3.0 * options.rounding_budget(map.units()) + 1e-9;
-    let mut move_finished = false;
     for (index, line) in output.lines().enumerate() {
-        let Some(segment) = reader.read(line).map_err(|()| VerifyError {
+        let segment = reader.read(line).map_err(|()| VerifyError {
             line: index + 1,
             text: line.to_string(),
-        })?
-        else {
+        })?;
+        let Some(segment) = segment.filter(|s| !s.positioning) else {
             continue;
         };
-        if segment.positioning {
-            continue;
-        }
         report.segments += 1;
         report.time_out += segment.time;
         let (Ok(start), Ok(end)) = (
@@ -96,69 +95,102 @@ pub fn verify<'a>(
             report.unmatched += 1;
             continue;
         };
-        if segment.from != segment.to && (start[0] - end[0]).hypot(start[1] - end[1]) < 1e-5 {
+        if segment.from == segment.to {
+            // No planar motion (Z or E only): no XY deviation to measure.
+            continue;
+        }
+        if (start[0] - end[0]).hypot(start[1] - end[1]) < 1e-5 {
             report.flip_time += segment.time;
         }
-        while window.len() < LOOKAHEAD {
-            match moves.next() {
-                Some(m) => window.push_back(m),
-                None => break,
-            }
-        }
-        if move_finished && !window.is_empty() {
-            window.pop_front();
-        }
-        let miss = |m: &Intended| {
-            let part = m.path.part(0.0, 1.0);
-            part.distance(start).max(part.distance(end))
+        let Some(path) = moves.path_of(start, end, &mut report) else {
+            continue;
         };
-        let k = match window.iter().position(|m| miss(m) <= on_path) {
-            Some(k) => k,
-            None => {
-                // Off every path: compare with the nearest one, so a wrong output shows how wrong it is.
-                report.unmatched += 1;
-                let nearest = window
-                    .iter()
-                    .map(miss)
-                    .enumerate()
-                    .min_by(|a, b| a.1.total_cmp(&b.1));
-                match nearest {
-                    Some((k, _)) => k,
-                    None => continue,
-                }
-            }
-        };
-        window.drain(..k);
-        let path = window[0].path;
-        let path_end = path.point(1.0);
-        move_finished = (end[0] - path_end[0]).hypot(end[1] - path_end[1]) <= on_path;
-        for i in 0..=SAMPLES_PER_SEGMENT {
-            let u = i as f64 / SAMPLES_PER_SEGMENT as f64;
-            let a = [0, 1].map(|j| segment.from[j] + (segment.to[j] - segment.from[j]) * u);
-            let z = segment.z[0] + (segment.z[1] - segment.z[0]) * u;
-            let Ok(q) = map.from_axes(a, z) else {
-                report.unmatched += 1;
-                break;
-            };
-            let d = path.distance_xy(q, 0.0, 1.0);
-            squares += d * d;
-            report.samples += 1;
-            if d > report.max_deviation {
-                report.max_deviation = d;
-                report.worst_point = q;
-            }
-        }
+        squares += measure(map, &path, &segment, &mut report);
     }
-    moves.by_ref().for_each(drop);
+    moves.moves.by_ref().for_each(drop);
     report.rms_deviation = if report.samples > 0 {
         (squares / report.samples as f64).sqrt()
     } else {
         0.0
     };
-    report.extrusion_in = moves.extrusion;
-    report.time_in = moves.time;
+    report.extrusion_in = moves.moves.extrusion;
+    report.time_in = moves.moves.time;
     report.extrusion_out = reader.extrusion;
     Ok(report)
+}
+
+/// Samples one written segment densely; returns the sum of squared deviations.
+fn measure(map: &AxisMap, path: &Path, segment: &WrittenSegment, report: &mut VerifyReport) -> f64 {
+    let part = path.part(0.0, 1.0);
+    let mut squares = 0.0;
+    for i in 0..=SAMPLES_PER_SEGMENT {
+        let u = i as f64 / SAMPLES_PER_SEGMENT as f64;
+        let a = [0, 1].map(|j| segment.from[j] + (segment.to[j] - segment.from[j]) * u);
+        let z = segment.z[0] + (segment.z[1] - segment.z[0]) * u;
+        let Ok(q) = map.from_axes(a, z) else {
+            report.unmatched += 1;
+            break;
+        };
+        let d = part.distance(q);
+        squares += d * d;
+        report.samples += 1;
+        if d > report.max_deviation {
+            report.max_deviation = d;
+            report.worst_point = q;
+        }
+    }
+    squares
+}
+
+/// Finds the input move each written segment belongs to (see the module documentation).
+struct Matcher<'o, I> {
+    moves: IntendedMoves<'o, I>,
+    window: VecDeque<Intended>,
+    on_path: f64,
+    /// The previous segment ended at its move's end point.
+    move_finished: bool,
+}
+
+impl<'a, I: Iterator<Item = &'a Command>> Matcher<'_, I> {
+    fn path_of(
+        &mut self,
+        start: [f64; 2],
+        end: [f64; 2],
+        report: &mut VerifyReport,
+    ) -> Option<Path> {
+        while self.window.len() < LOOKAHEAD {
+            match self.moves.next() {
+                Some(m) => self.window.push_back(m),
+                None => break,
+            }
+        }
+        if self.move_finished {
+            self.window.pop_front();
+        }
+        let miss = |m: &Intended| {
+            let part = m.path.part(0.0, 1.0);
+            part.distance(start).max(part.distance(end))
+        };
+        let k = match self.window.iter().position(|m| miss(m) <= self.on_path) {
+            Some(k) => k,
+            None => {
+                // Off every path: compare with the nearest one, so a wrong output shows how wrong it is.
+                report.unmatched += 1;
+                let nearest = self
+                    .window
+                    .iter()
+                    .map(miss)
+                    .enumerate()
+                    .min_by(|a, b| a.1.total_cmp(&b.1));
+                nearest?.0
+            }
+        };
+        self.window.drain(..k);
+        let path = self.window.front()?.path;
+        let path_end = path.point(1.0);
+        self.move_finished = (end[0] - path_end[0]).hypot(end[1] - path_end[1]) <= self.on_path;
+        Some(path)
+    }
 }
 
 /// The input's moves with known starts, with extrusion and time totals.
@@ -204,6 +236,16 @@ impl<'a, I: Iterator<Item = &'a Command>> Iterator for IntendedMoves<'_, I> {
             let (path, feed, de) = match self.commands.next()? {
                 Command::Move(m) => {
                     let target = self.placed(m.target);
+                    if self.position.is_none() && !(m.named[0] || m.named[1]) {
+                        // XY still unknown: the converter writes a positioning Z, or a timed E-only line.
+                        let de = target[3] - self.last_e;
+                        if !m.named[2] && m.feed > 0.0 {
+                            self.time += de.abs() / m.feed;
+                        }
+                        self.advance(target);
+                        self.position = None;
+                        continue;
+                    }
                     let Some(start) = self.advance(target) else {
                         continue;
                     };

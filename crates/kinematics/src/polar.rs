@@ -100,7 +100,13 @@ impl Polar {
 
     fn check_limits(&self, p: Vec3) -> Result<(), ReachError> {
         ensure_finite_point(p)?;
-        let (_, arm) = self.bed_and_arm(p[0], p[1])?;
+        let arm = match self.bed_and_arm(p[0], p[1]) {
+            Ok((_, arm)) => arm,
+            // At the centre the bed angle is undefined but the arm position is not: the point is reachable
+            // (a move may end or start there; crossing it is the planner's business).
+            Err(ReachError::AtCentre { .. }) => -self.params.arm_zero_offset,
+            Err(e) => return Err(e),
+        };
         check_stepper_limits(&self.params.arm, arm)?;
         check_axis_limits('z', &self.params.z, p[2])
     }
@@ -212,7 +218,11 @@ impl Kinematics for Polar {
             .map_err(|reason| SegmentError { t: 0.0, reason })?;
         let (t_near, d_near) = closest_approach(a, b, [0.0, 0.0]);
         let near = lerp(a, b, t_near);
-        if self.params.arm_lateral_offset == 0.0 && d_near <= CENTRE_TOLERANCE {
+        // Passing through the centre needs the bed to turn half a revolution there; the planner splits such
+        // moves at the centre, so only a segment that crosses it (not one that ends or starts on it) fails.
+        let off_centre = |p: Vec3| p[0].hypot(p[1]) > CENTRE_TOLERANCE;
+        let crosses = off_centre(a) && off_centre(b);
+        if self.params.arm_lateral_offset == 0.0 && d_near <= CENTRE_TOLERANCE && crosses {
             return Err(SegmentError {
                 t: t_near,
                 reason: ReachError::AtCentre {

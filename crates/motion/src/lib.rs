@@ -7,6 +7,7 @@
 pub mod arcs;
 pub mod csv;
 pub mod driver;
+pub mod kinematic_limits;
 pub mod limits;
 pub mod machine;
 pub mod lookahead;

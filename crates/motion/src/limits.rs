@@ -41,6 +41,16 @@ pub struct ExtruderLimits {
     pub instantaneous_corner_velocity: f64,
 }
 
+/// How a polar bed turns half a revolution when a move crosses its centre (the bed angle flips there).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CentreTurn {
+    /// The rotation centre (mm).
+    pub centre: [f64; 2],
+    /// Angular speed and acceleration of the turn (rad/s, rad/s²).
+    pub max_velocity: f64,
+    pub max_accel: f64,
+}
+
 /// Everything the planner needs to know about the machine, fixed for a run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlannerConfig {
@@ -69,6 +79,11 @@ pub struct PlannerConfig {
     /// first second of print time. Off: moves are planned by the lookahead alone (what a live printer does
     /// when fed fast enough). Needed only to compare with Klipper's batch output.
     pub klipper_batch_flush: bool,
+    /// Motor speed/acceleration limits (polar bed, SCARA joints, step rates); empty: Klipper's behaviour.
+    pub kinematic_limits: Vec<crate::kinematic_limits::MotorLimit>,
+    /// Polar machines: moves through the centre stop there while the bed turns half a revolution. `None`:
+    /// such moves are refused (as Klipper, which fails on them).
+    pub centre_turn: Option<CentreTurn>,
     /// Skip moves whose segment is unreachable (reported as warnings) instead of stopping with an error.
     pub skip_unreachable: bool,
 }
@@ -88,6 +103,8 @@ impl PlannerConfig {
             initial_step_gen_time: 0.0,
             klipper_batch_flush: false,
             skip_unreachable: false,
+            kinematic_limits: Vec::new(),
+            centre_turn: None,
         }
     }
 }

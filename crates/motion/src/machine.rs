@@ -2,11 +2,12 @@
 //! and the loop that plans a whole G-code stream.
 
 use crate::driver::{PlanError, Planner, Warning};
-use crate::limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
+use crate::kinematic_limits::MotorLimit;
+use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::toolhead::{SlowMoves, Toolhead};
 use config::{KinematicsKind, MachineConfig};
 use gcode::{Commands, GcodeError};
-use kinematics::Kinematics;
+use kinematics::{Kinematics, MotorMap};
 use std::io::BufRead;
 use trapq::MoveSink;
 
@@ -72,9 +73,51 @@ impl MachineSetup {
         if let Some(arcs) = machine.arcs {
             planner.arc_resolution = arcs.resolution;
         }
+        planner.kinematic_limits = motor_limits(machine, kinematics.as_ref());
+        planner.centre_turn = centre_turn(machine, kinematics.as_ref());
         let home_position = home_position(machine, kinematics.as_ref())?;
         Ok(MachineSetup { kinematics, planner, home_position })
     }
+}
+
+/// Motor limits from the config: polar bed (`max_angular_velocity`, `max_angular_accel`), SCARA joints
+/// (`max_joint_velocity`, `max_joint_accel` on both arm motors), and every stepper's `max_step_rate` (per stepper,
+/// or the `[printer]` default) as a speed limit of step rate × step distance.
+fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit> {
+    let l = &machine.limits;
+    let mut limits = Vec::new();
+    for (index, motor) in kin.motors().iter().enumerate() {
+        let (mut velocity, accel) = match (machine.kinematics, motor.name.as_str()) {
+            (KinematicsKind::Polar, "stepper_bed") => (l.max_angular_velocity, l.max_angular_accel),
+            (KinematicsKind::Scara, "stepper_a" | "stepper_b") => (l.max_joint_velocity, l.max_joint_accel),
+            _ => (None, None),
+        };
+        let step_rate = machine.stepper(&motor.name).and_then(|s| s.max_step_rate).or(l.max_step_rate);
+        if let Some(rate) = step_rate {
+            let v = rate * motor.step_distance;
+            velocity = Some(velocity.map_or(v, |limit| limit.min(v)));
+        }
+        if velocity.is_some() || accel.is_some() {
+            limits.push(MotorLimit { motor: index, max_velocity: velocity, max_accel: accel });
+        }
+    }
+    limits
+}
+
+/// A polar bed's half turn at the centre: its configured angular limits, or else the speed and acceleration that
+/// move the bed's rim (the arm's reach) at `max_velocity` and `max_accel`.
+fn centre_turn(machine: &MachineConfig, kin: &dyn Kinematics) -> Option<CentreTurn> {
+    let bed = kin.motors().iter().position(|m| m.name == "stepper_bed")?;
+    let MotorMap::Angle { centre } = kin.motor_map(bed) else {
+        return None;
+    };
+    let radius = machine.stepper("stepper_arm").and_then(|s| s.position_max).filter(|r| *r > 0.0)?;
+    let l = &machine.limits;
+    Some(CentreTurn {
+        centre,
+        max_velocity: l.max_angular_velocity.unwrap_or(l.max_velocity / radius),
+        max_accel: l.max_angular_accel.unwrap_or(l.max_accel / radius),
+    })
 }
 
 /// The toolhead pose after every axis has run to its endstop. Polar: the arm at its endstop, the bed angle

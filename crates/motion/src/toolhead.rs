@@ -1,7 +1,8 @@
 //! The toolhead: accepts moves, checks them, runs the lookahead and appends planned moves to the sink with
 //! their print times, the way Klipper's toolhead does in batch mode.
 
-use crate::limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
+use crate::kinematic_limits;
+use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::lookahead::{BUFFER_TIME_HIGH, LookAhead, Move};
 use kinematics::{Kinematics, SegmentError};
 use trapq::{MoveSink, Queue, TrapezoidMove};
@@ -36,6 +37,8 @@ pub enum MoveError {
     OverExtrusion { area: f64, max_area: f64 },
     #[error("position is not finite")]
     NotFinite,
+    #[error("the motor limits leave no speed on this move ({reason})")]
+    NoSpeedLeft { reason: &'static str },
 }
 
 /// A move whose speed a machine limit cut hard (below [`SLOW_MOVE_FRACTION`] of the requested speed).
@@ -152,15 +155,69 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     }
 
     /// Queue a straight move to `target` at `speed` mm/s. `origin` identifies the source (a G-code line).
+    ///
+    /// When motor limits are configured and bind somewhere along the move, the move is queued as collinear
+    /// spans with their own caps (see [`kinematic_limits`]); otherwise it is queued whole, as Klipper does.
     pub fn move_to(&mut self, target: [f64; 4], speed: f64, origin: u64) -> Result<(), MoveError> {
         if target.iter().any(|v| !v.is_finite()) {
             return Err(MoveError::NotFinite);
         }
-        let Some(mut mv) = Move::new(self.commanded_pos, target, speed, &self.limits, origin) else {
+        let start = self.commanded_pos;
+        let Some(whole) = Move::new(start, target, speed, &self.limits, origin) else {
             return Ok(());
         };
-        if mv.is_kinematic {
-            self.check_kinematic_move(&mut mv)?;
+        if let Some(turn) = self.config.centre_turn {
+            if let Some(centre_point) = centre_crossing(&whole, turn.centre) {
+                self.move_to(centre_point, speed, origin)?;
+                self.turn_bed_at_centre(&turn);
+                return self.move_to(target, speed, origin);
+            }
+        }
+        if whole.is_kinematic {
+            self.check_reach(&whole)?;
+        }
+        let spans = if whole.is_kinematic && !self.config.kinematic_limits.is_empty() {
+            let requested = speed.min(self.limits.max_velocity);
+            kinematic_limits::split(
+                self.kinematics,
+                &self.config.kinematic_limits,
+                xyz(start),
+                xyz(whole.end_pos),
+                requested,
+                whole.accel,
+            )
+        } else {
+            Vec::new()
+        };
+        if spans.is_empty() {
+            return self.queue_move(whole, speed);
+        }
+        let mut from = start;
+        for (i, span) in spans.iter().enumerate() {
+            if !(span.max_speed > 0.0 && span.max_speed.is_finite() && span.max_accel > 0.0) {
+                return Err(MoveError::NoSpeedLeft { reason: "it passes through the rotation centre or a singular pose" });
+            }
+            let to = if i + 1 == spans.len() {
+                whole.end_pos
+            } else {
+                let f = span.end / whole.move_d;
+                [0, 1, 2, 3].map(|k| start[k] + (whole.end_pos[k] - start[k]) * f)
+            };
+            let Some(mut part) = Move::new(from, to, speed, &self.limits, origin) else {
+                continue;
+            };
+            part.limit_speed(span.max_speed, span.max_accel);
+            self.queue_move(part, speed)?;
+            from = to;
+        }
+        Ok(())
+    }
+
+    /// Speed limits of the Z axis and the extruder, then into the lookahead.
+    fn queue_move(&mut self, mut mv: Move, speed: f64) -> Result<(), MoveError> {
+        if mv.is_kinematic && self.config.apply_z_limits && mv.axes_d[2] != 0.0 {
+            let z_ratio = mv.move_d / mv.axes_d[2].abs();
+            mv.limit_speed(self.config.max_z_velocity * z_ratio, self.config.max_z_accel * z_ratio);
         }
         if mv.axes_d[3] != 0.0 {
             check_extrusion(self.config.extruder.as_ref(), &mut mv)?;
@@ -195,18 +252,36 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         }
     }
 
-    /// Reachability along the whole segment, then the Z speed limits.
-    fn check_kinematic_move(&self, mv: &mut Move) -> Result<(), MoveError> {
-        let start = [mv.start_pos[0], mv.start_pos[1], mv.start_pos[2]];
-        let end = [mv.end_pos[0], mv.end_pos[1], mv.end_pos[2]];
+    /// At the polar centre the bed angle flips by π: come to rest there (a full flush), turn the bed half a
+    /// revolution within its limits, and go on. The turn is handed over as a toolhead piece with no direction
+    /// whose distance is the turn angle (rad); step generation turns the bed through it.
+    fn turn_bed_at_centre(&mut self, turn: &CentreTurn) {
+        self.flush_lookahead();
+        let start = self.last_move_time();
+        let (accel_t, cruise_t, cruise_v) = trapezoid_for_turn(std::f64::consts::PI, turn.max_velocity, turn.max_accel);
+        let mv = TrapezoidMove {
+            print_time: start,
+            accel_t,
+            cruise_t,
+            decel_t: accel_t,
+            start_pos: xyz(self.commanded_pos),
+            axes_r: [0.0; 3],
+            start_v: 0.0,
+            cruise_v,
+            accel: turn.max_accel,
+        };
+        self.sink.append(Queue::Toolhead, &mv);
+        let end = start + accel_t + cruise_t + accel_t;
+        self.print_time = end;
+        self.note_motion_queued(end);
+    }
+
+    /// Reachability along the whole segment (not just its end points).
+    fn check_reach(&self, mv: &Move) -> Result<(), MoveError> {
+        let (start, end) = (xyz(mv.start_pos), xyz(mv.end_pos));
         self.kinematics
             .check_segment(start, end)
-            .map_err(|source| MoveError::Unreachable { x: end[0], y: end[1], z: end[2], source })?;
-        if self.config.apply_z_limits && mv.axes_d[2] != 0.0 {
-            let z_ratio = mv.move_d / mv.axes_d[2].abs();
-            mv.limit_speed(self.config.max_z_velocity * z_ratio, self.config.max_z_accel * z_ratio);
-        }
-        Ok(())
+            .map_err(|source| MoveError::Unreachable { x: end[0], y: end[1], z: end[2], source })
     }
 
     /// G4: wait `seconds` after the queued moves finish.
@@ -403,6 +478,47 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             );
         }
     }
+}
+
+/// Where a straight move crosses the rotation centre (within a nanometre, and not at its ends): the move's
+/// point there, with X/Y exactly on the centre.
+fn centre_crossing(mv: &Move, centre: [f64; 2]) -> Option<[f64; 4]> {
+    const TOLERANCE: f64 = 1e-9;
+    if !mv.is_kinematic {
+        return None;
+    }
+    let (a, b) = (mv.start_pos, mv.end_pos);
+    let off = |p: [f64; 4]| (p[0] - centre[0]).hypot(p[1] - centre[1]) > TOLERANCE;
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let len2 = d[0] * d[0] + d[1] * d[1];
+    if !off(a) || !off(b) || len2 == 0.0 {
+        return None;
+    }
+    let t = -((a[0] - centre[0]) * d[0] + (a[1] - centre[1]) * d[1]) / len2;
+    if !(0.0..=1.0).contains(&t) {
+        return None;
+    }
+    let near = [a[0] + d[0] * t - centre[0], a[1] + d[1] * t - centre[1]];
+    if near[0].hypot(near[1]) > TOLERANCE {
+        return None;
+    }
+    Some([centre[0], centre[1], a[2] + (b[2] - a[2]) * t, a[3] + (b[3] - a[3]) * t])
+}
+
+/// Accelerate, cruise and decelerate through `angle` within `max_velocity` and `max_accel`:
+/// (acceleration time = deceleration time, cruise time, peak speed).
+fn trapezoid_for_turn(angle: f64, max_velocity: f64, max_accel: f64) -> (f64, f64, f64) {
+    let ramps = max_velocity * max_velocity / max_accel;
+    if angle >= ramps {
+        (max_velocity / max_accel, (angle - ramps) / max_velocity, max_velocity)
+    } else {
+        let peak = (angle * max_accel).sqrt();
+        (peak / max_accel, 0.0, peak)
+    }
+}
+
+fn xyz(p: [f64; 4]) -> [f64; 3] {
+    [p[0], p[1], p[2]]
 }
 
 /// The extruder's limits on a move with E motion: extrude-only moves and retractions are limited to the

@@ -94,6 +94,9 @@ pub struct MotorStepper {
     dir_up: bool,
     filter: StepFilter,
     general: Option<GeneralState>,
+    /// A polar bed's ideal angle at the end of the last piece (continuous with `commanded`): the angle the bed
+    /// keeps while the toolhead sits at the centre, where the angle of the position itself is undefined.
+    bed_angle: f64,
 }
 
 impl MotorStepper {
@@ -118,6 +121,7 @@ impl MotorStepper {
             dir_up: false,
             filter: StepFilter::new(config.clock_hz, config.filter_time),
             general,
+            bed_angle: start_position,
         }
     }
 
@@ -167,8 +171,10 @@ impl MotorStepper {
     fn normalise_angle(&mut self) {
         if self.commanded < -PI {
             self.commanded += TAU;
+            self.bed_angle += TAU;
         } else if self.commanded > PI {
             self.commanded -= TAU;
+            self.bed_angle -= TAU;
         }
     }
 
@@ -376,22 +382,17 @@ impl MotorStepper {
     ) -> Result<(), StepError> {
         let line = PlaneLine::new(piece, centre);
         if line.uu == 0.0 {
-            // No XY motion (a Z move): the angle cannot change, even when parked at the centre. Klipper
-            // skips such moves for XY steppers too.
+            if is_turn_in_place(piece, centre) {
+                self.turn_span(piece, span, sink);
+            }
+            // Otherwise no XY motion (a Z move): the angle cannot change, even when parked at the centre.
+            // Klipper skips such moves for XY steppers too.
             return Ok(());
         }
         let qa = line.point(span.d0);
         let qb = line.point(span.d1);
-        let through_centre = line.cross == 0.0 && {
-            let s = line.closest_s();
-            line.uu > 0.0 && (s - span.d0) * (s - span.d1) <= 0.0
-        };
-        if qa == [0.0, 0.0] || qb == [0.0, 0.0] || through_centre {
-            let time = piece.print_time + span.t0;
-            return Err(StepError::ThroughCentre {
-                motor: self.spec.name.clone(),
-                time,
-            });
+        if line.cross == 0.0 {
+            return self.radial_span(piece, span, &line, sink);
         }
         let raw = qa[1].atan2(qa[0]);
         let fa = raw + TAU * ((self.commanded_position() - raw) / TAU).round();
@@ -400,8 +401,57 @@ impl MotorStepper {
         let fb = fa + sweep;
         let mut inverse = AngleInverse::new(&line, span, self.spec.step_distance);
         self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
+        self.bed_angle = fb;
         Ok(())
     }
+
+    /// A radial line: the bed angle is constant along it. It may end or start at the centre (the bed keeps
+    /// its angle there), but not cross it: crossing needs the planner to stop and turn the bed there.
+    fn radial_span<S: StepSink + ?Sized>(
+        &mut self,
+        piece: &Piece,
+        span: &Span,
+        line: &PlaneLine,
+        sink: &mut S,
+    ) -> Result<(), StepError> {
+        let qa = line.point(span.d0);
+        let qb = line.point(span.d1);
+        let s = line.closest_s();
+        let crosses = qa != [0.0, 0.0] && qb != [0.0, 0.0] && (s - span.d0) * (s - span.d1) < 0.0;
+        if crosses {
+            return Err(StepError::ThroughCentre {
+                motor: self.spec.name.clone(),
+                time: piece.print_time + span.t0,
+            });
+        }
+        let off_centre = if qa != [0.0, 0.0] { qa } else { qb };
+        let angle = if off_centre == [0.0, 0.0] {
+            self.bed_angle
+        } else {
+            let raw = off_centre[1].atan2(off_centre[0]);
+            raw + TAU * ((self.bed_angle - raw) / TAU).round()
+        };
+        self.settle(angle, piece.print_time + span.t0, sink);
+        self.bed_angle = angle;
+        Ok(())
+    }
+
+    /// The bed turning while the toolhead stays at the centre: the piece's distance is the turn (rad,
+    /// counter-clockwise positive).
+    fn turn_span<S: StepSink + ?Sized>(&mut self, piece: &Piece, span: &Span, sink: &mut S) {
+        let base = self.bed_angle - span.d0;
+        let fa = self.bed_angle;
+        let fb = base + span.d1;
+        let mut inverse = |level: f64, _dir: f64| span.time_at(clamp_between(level - base, span.d0, span.d1));
+        self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
+        self.bed_angle = fb;
+    }
+}
+
+/// A toolhead piece with no direction, parked on the rotation centre, stands for the bed turning in place
+/// (see `motion`'s centre crossing): its distance is the turn angle.
+fn is_turn_in_place(piece: &Piece, centre: [f64; 2]) -> bool {
+    piece.axes_r == [0.0; 3] && piece.start_pos[0] == centre[0] && piece.start_pos[1] == centre[1]
 }
 
 /// Maps a position level to the time (relative to the piece start) at which the motor reaches it.

@@ -99,6 +99,32 @@ fn corpus_round_trip_scara() {
     corpus_round_trip("scara", scara_setup);
 }
 
+#[test]
+fn other_output_conventions_round_trip() {
+    // Inverse-time feed, absolute E, R/T letters and radians on two corpus files (one with arcs).
+    for (name, text) in corpus_files()
+        .into_iter()
+        .filter(|(n, _)| n.contains("mini-cube") || n.contains("arcs"))
+    {
+        let commands = convert::read_commands(&text[..], &name).expect("corpus parses");
+        let s = polar_setup(&commands);
+        let options = ConvertOptions {
+            feed: convert::FeedMode::InverseTime,
+            extrusion: convert::Extrusion::Absolute,
+            axis_letters: Some(['R', 'T']),
+            angle_unit: convert::AngleUnit::Radians,
+            decimals: convert::Decimals {
+                linear: 4,
+                angle: 8,
+                extrusion: 5,
+            },
+            ..s.options
+        };
+        let (_, _, report) = round_trip(&s.map, &options, &text);
+        assert_faithful(&name, "polar", &report, TOLERANCE);
+    }
+}
+
 /// Decimals fine enough that rounding does not mask deviations of a few hundred-thousandths of a mm.
 const FINE: convert::Decimals = convert::Decimals {
     linear: 6,

@@ -1,3 +1,4 @@
 //! Integration tests of the planner: Klipper's own planned moves on real G-code (`../shared/golden`).
 
 mod golden;
+mod limits;

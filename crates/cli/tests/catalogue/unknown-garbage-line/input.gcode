@@ -1,0 +1,3 @@
+G28
+G90
+hello world

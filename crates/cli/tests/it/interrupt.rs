@@ -1,0 +1,94 @@
+//! Interruption: SIGINT to a running `run` (fed an endless stdin stream) must stop it with a non-zero exit
+//! and leave no output at all, not even a temporary file. Needs `crate::interrupt` wired into the pipelines.
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use crate::common::{CircleStream, binary, example_machine, files_under};
+
+/// Starts `args` with an endless G-code stream on stdin (it stops when the child closes the pipe).
+fn start_streaming(args: &[&std::ffi::OsStr]) -> (Child, std::thread::JoinHandle<u64>) {
+    let mut child = Command::new(binary())
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start jointspace");
+    let mut stdin = child.stdin.take().expect("piped stdin");
+    let writer = std::thread::spawn(move || CircleStream::new().write_to(&mut stdin, u64::MAX));
+    (child, writer)
+}
+
+/// Waits until `dir` holds a file (the run is writing), at most `limit`.
+fn wait_for_output(dir: &Path, limit: Duration) -> bool {
+    let started = Instant::now();
+    while started.elapsed() < limit {
+        if !files_under(dir).is_empty() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    false
+}
+
+fn send_sigint(pid: u32) {
+    let status = Command::new("kill").args(["-INT", &pid.to_string()]).status().expect("run kill");
+    assert!(status.success(), "kill -INT {pid} failed");
+}
+
+/// Waits for the child at most `limit`; kills it (and fails) if it does not stop.
+fn wait_or_kill(child: &mut Child, limit: Duration) -> std::process::ExitStatus {
+    let started = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("poll child") {
+            return status;
+        }
+        if started.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("jointspace did not stop within {limit:?} of SIGINT");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn check_interrupted(args: &[&std::ffi::OsStr], out: &Path) {
+    let (mut child, writer) = start_streaming(args);
+    assert!(wait_for_output(out, Duration::from_secs(20)), "the run never started writing into {}", out.display());
+    // Let it write for a while, so buffers and temporary files are mid-way.
+    std::thread::sleep(Duration::from_millis(300));
+    send_sigint(child.id());
+    let status = wait_or_kill(&mut child, Duration::from_secs(10));
+    let _ = writer.join();
+    let mut stderr = String::new();
+    if let Some(mut pipe) = child.stderr.take() {
+        let _ = std::io::Read::read_to_string(&mut pipe, &mut stderr);
+    }
+    assert!(!status.success(), "an interrupted run exited successfully");
+    assert!(!stderr.contains("panicked"), "the interrupted run panicked:\n{stderr}");
+    let left = files_under(out);
+    assert!(left.is_empty(), "an interrupted run left files behind ({status}): {left:?}");
+}
+
+#[test]
+fn sigint_during_run_leaves_no_output() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let out = scratch.path().join("out");
+    std::fs::create_dir_all(&out).expect("output folder");
+    let config = example_machine("cartesian");
+    let steps = out.join("steps");
+    let moves = out.join("moves.csv");
+    let args: Vec<&std::ffi::OsStr> = vec![
+        "run".as_ref(),
+        "-c".as_ref(),
+        config.as_os_str(),
+        "-".as_ref(),
+        "--steps".as_ref(),
+        steps.as_os_str(),
+        "--moves".as_ref(),
+        moves.as_os_str(),
+    ];
+    check_interrupted(&args, &out);
+}

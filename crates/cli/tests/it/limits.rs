@@ -1,0 +1,177 @@
+//! Limits that must hold on inputs of any size: bounded memory on a generated stream piped through stdin
+//! (never stored), linear time on long files, many tiny moves and very long lines.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use crate::common::{CircleStream, binary, example_machine, peak_rss_kb};
+
+const MB: u64 = 1 << 20;
+
+/// Peak RSS the `run` pipeline may use, whatever the input length.
+const RSS_LIMIT_KB: u64 = 64 * 1024;
+
+/// Pipes `bytes` of generated G-code into `run -c cartesian.cfg -`, watching the child's peak RSS.
+/// Returns (peak RSS in kB, seconds, stdout).
+fn run_stream(bytes: u64) -> (u64, f64, String) {
+    let started = Instant::now();
+    let mut child = Command::new(binary())
+        .args(["run", "-c"])
+        .arg(example_machine("cartesian"))
+        .arg("-")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start jointspace");
+    let pid = child.id();
+    let mut stdin = child.stdin.take().expect("piped stdin");
+    let writer = std::thread::spawn(move || {
+        let written = CircleStream::new().write_to(&mut stdin, bytes);
+        drop(stdin);
+        written
+    });
+    let mut peak = 0;
+    while child.try_wait().expect("poll child").is_none() {
+        peak = peak.max(peak_rss_kb(pid).unwrap_or(0));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let written = writer.join().expect("writer thread");
+    let output = child.wait_with_output().expect("collect output");
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(
+        output.status.success(),
+        "run failed on the generated stream: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(written >= bytes, "only {written} of {bytes} bytes were consumed");
+    (peak, started.elapsed().as_secs_f64(), stdout)
+}
+
+fn check_memory(bytes: u64) {
+    let (peak_kb, seconds, stdout) = run_stream(bytes);
+    println!(
+        "run on a {} MB stdin stream: peak RSS {:.1} MB, {seconds:.1} s ({:.0} MB/s)",
+        bytes / MB,
+        peak_kb as f64 / 1024.0,
+        (bytes / MB) as f64 / seconds
+    );
+    assert!(peak_kb > 0, "could not read the child's VmHWM");
+    assert!(peak_kb <= RSS_LIMIT_KB, "peak RSS {peak_kb} kB is above {RSS_LIMIT_KB} kB:\n{stdout}");
+    // 126 chords per circle, two queues: the move counts tell the whole stream was planned.
+    let expected_moves = bytes / 3600 * 126;
+    assert!(
+        stdout.lines().any(|l| l.contains("toolhead") && moves_in(l) >= expected_moves),
+        "fewer moves than the stream holds (expected ≥ {expected_moves}):\n{stdout}"
+    );
+}
+
+/// The toolhead move count of the summary's `moves` line.
+fn moves_in(line: &str) -> u64 {
+    line.split_whitespace().find_map(|w| w.parse().ok()).unwrap_or(0)
+}
+
+#[test]
+fn memory_stays_bounded_on_a_long_stdin_stream() {
+    // Release builds (CI) stream 200 MB; a debug build runs a tenth of that to stay quick.
+    let bytes = if cfg!(debug_assertions) { 20 * MB } else { 200 * MB };
+    check_memory(bytes);
+}
+
+/// The acceptance measurement: a 2 GB stream. Run with `JOINTSPACE_BIG_TESTS=1 cargo test --release`.
+#[test]
+fn memory_stays_bounded_on_a_2_gb_stdin_stream() {
+    if std::env::var_os("JOINTSPACE_BIG_TESTS").is_none() {
+        println!("skipped: set JOINTSPACE_BIG_TESTS=1 to stream 2 GB through `run`");
+        return;
+    }
+    check_memory(2048 * MB);
+}
+
+/// Seconds `run` takes on `input` (best of two, to damp noise from other processes).
+fn run_time(input: &[u8]) -> f64 {
+    (0..2)
+        .map(|_| {
+            let started = Instant::now();
+            let mut child = Command::new(binary())
+                .args(["run", "-c"])
+                .arg(example_machine("cartesian"))
+                .arg("-")
+                .stdin(Stdio::piped())
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("start jointspace");
+            let mut stdin = child.stdin.take().expect("piped stdin");
+            // An input may be refused early (a line too long): the pipe then closes.
+            let _ = stdin.write_all(input);
+            drop(stdin);
+            child.wait().expect("wait for jointspace");
+            started.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Time on 4× the input must grow about 4× (linear), far from 16× (quadratic).
+fn assert_linear(what: &str, make: impl Fn(u64) -> Vec<u8>, small: u64) {
+    let small_time = run_time(&make(small));
+    let large_time = run_time(&make(4 * small));
+    let ratio = large_time / small_time;
+    println!("{what}: {small_time:.3} s → {large_time:.3} s for 4× the input (×{ratio:.1})");
+    assert!(ratio < 8.0, "{what}: 4× the input took ×{ratio:.1} the time ({small_time:.3} s → {large_time:.3} s)");
+}
+
+fn scale(mb: u64) -> u64 {
+    if cfg!(debug_assertions) { mb * MB / 8 } else { mb * MB }
+}
+
+#[test]
+fn many_tiny_moves_take_linear_time() {
+    assert_linear("0.1 mm moves", |bytes| CircleStream::new().to_vec(bytes), scale(8));
+}
+
+#[test]
+fn a_very_long_comment_line_takes_linear_time() {
+    assert_linear(
+        "one long comment line",
+        |bytes| {
+            let mut text = b"G28\nG1 X10 Y10 F3000 ;".to_vec();
+            text.resize(bytes as usize, b'c');
+            text.extend_from_slice(b"\nG1 X20 Y20\n");
+            text
+        },
+        scale(6),
+    );
+}
+
+#[test]
+fn a_line_of_many_words_takes_linear_time() {
+    assert_linear(
+        "one line of repeated words",
+        |bytes| {
+            let mut text = b"G28\nG1".to_vec();
+            while (text.len() as u64) < bytes {
+                text.extend_from_slice(b" X10.125 Y20.5");
+            }
+            text.extend_from_slice(b" F3000\nG1 X20 Y20\n");
+            text
+        },
+        scale(2),
+    );
+}
+
+#[test]
+fn a_long_run_of_commands_without_moves_takes_linear_time() {
+    assert_linear(
+        "many non-move commands",
+        |bytes| {
+            let mut text = b"G28\n".to_vec();
+            while (text.len() as u64) < bytes {
+                text.extend_from_slice(b"M106 S255\nM104 S200\nG92 E0\n;LAYER_CHANGE\n");
+            }
+            text
+        },
+        scale(4),
+    );
+}

@@ -1,0 +1,8 @@
+//! Integration tests of the `jointspace` binary: the bad-input catalogue, limits that must hold (memory,
+//! time, determinism, interruption) and fuzz regressions. Every test runs the built binary as a user would.
+
+mod catalogue;
+mod common;
+mod determinism;
+mod interrupt;
+mod limits;

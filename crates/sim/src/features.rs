@@ -1,0 +1,240 @@
+//! Dimensional checks on recognisable features: closed loops of the intended path that are circles (from
+//! the G-code geometry) are measured on the actual path: diameter and roundness from a geometric circle
+//! fit, and the axes of the best-fitting ellipse (an oval from a wrong coupling shows up here).
+
+use crate::metrics::PathPoint;
+use calibrate::circle::{self, Point};
+use nalgebra::{Matrix2, SymmetricEigen};
+use serde::Serialize;
+
+/// A loop closes when the intended path returns this close to its start (mm), after going `MIN_EXCURSION`.
+const CLOSE_TOLERANCE: f64 = 0.3;
+const MIN_EXCURSION: f64 = 3.0;
+/// A loop is a circle when its intended points are within this share of the radius (or 0.06 mm) of a circle.
+const CIRCLE_TOLERANCE: f64 = 0.01;
+const MIN_POINTS: usize = 12;
+
+/// An ellipse: centre, semi-axes and the major axis direction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Ellipse {
+    pub centre: Point,
+    pub semi_major: f64,
+    pub semi_minor: f64,
+    /// Direction of the major axis from +X (degrees, 0..180).
+    pub angle_deg: f64,
+}
+
+/// One circular loop of the print, intended vs actual (mm).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CircleFeature {
+    pub layer: usize,
+    pub z: f64,
+    pub intended_centre: Point,
+    pub intended_diameter: f64,
+    pub actual_centre: Point,
+    pub actual_diameter: f64,
+    /// Max − min distance of the actual points from the actual fitted centre.
+    pub roundness: f64,
+    /// Best-fitting ellipse of the actual points (major/minor axes = 2 × semi-axes).
+    pub ellipse: Option<Ellipse>,
+    pub points: usize,
+}
+
+impl CircleFeature {
+    pub fn diameter_error(&self) -> f64 {
+        self.actual_diameter - self.intended_diameter
+    }
+
+    pub fn centre_shift(&self) -> f64 {
+        (self.actual_centre[0] - self.intended_centre[0])
+            .hypot(self.actual_centre[1] - self.intended_centre[1])
+    }
+}
+
+/// Every circular closed loop in the deposited part of `path`.
+pub fn find_circles(path: &[PathPoint]) -> Vec<CircleFeature> {
+    closed_loops(path)
+        .into_iter()
+        .filter_map(|range| measure_circle(&path[range]))
+        .collect()
+}
+
+/// Index ranges of closed loops within runs of deposited points.
+fn closed_loops(path: &[PathPoint]) -> Vec<std::ops::Range<usize>> {
+    let mut loops = Vec::new();
+    let mut start: Option<usize> = None;
+    let mut far = false;
+    for (i, p) in path.iter().enumerate() {
+        if !p.deposited {
+            start = None;
+            continue;
+        }
+        let Some(s) = start else {
+            start = Some(i);
+            far = false;
+            continue;
+        };
+        let d = distance(p.intended, path[s].intended);
+        if d > MIN_EXCURSION {
+            far = true;
+        } else if far && d < CLOSE_TOLERANCE {
+            loops.push(s..i + 1);
+            start = Some(i);
+            far = false;
+        }
+    }
+    loops
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+fn measure_circle(points: &[PathPoint]) -> Option<CircleFeature> {
+    if points.len() < MIN_POINTS {
+        return None;
+    }
+    let intended: Vec<Point> = points.iter().map(|p| [p.intended[0], p.intended[1]]).collect();
+    let fit = circle::geometric(&intended).ok()?;
+    let worst = fit.residuals.iter().fold(0.0f64, |m, r| m.max(r.abs()));
+    if worst > (CIRCLE_TOLERANCE * fit.circle.r).max(0.06) {
+        return None;
+    }
+    let actual: Vec<Point> = points.iter().map(|p| [p.actual[0], p.actual[1]]).collect();
+    let actual_fit = circle::geometric(&actual).ok()?;
+    let (lo, hi) = actual_fit
+        .residuals
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
+    Some(CircleFeature {
+        layer: points[0].layer,
+        z: points[0].intended[2],
+        intended_centre: [fit.circle.cx, fit.circle.cy],
+        intended_diameter: 2.0 * fit.circle.r,
+        actual_centre: [actual_fit.circle.cx, actual_fit.circle.cy],
+        actual_diameter: 2.0 * actual_fit.circle.r,
+        roundness: hi - lo,
+        ellipse: fit_ellipse(&actual),
+        points: points.len(),
+    })
+}
+
+/// Least-squares conic `A·u² + B·uv + C·v² + D·u + E·v = 1` in coordinates centred on the mean and scaled
+/// to unit spread; `None` when the points are not on an ellipse.
+pub fn fit_ellipse(points: &[Point]) -> Option<Ellipse> {
+    if points.len() < 5 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mean = points
+        .iter()
+        .fold([0.0, 0.0], |m, p| [m[0] + p[0] / n, m[1] + p[1] / n]);
+    let spread = (points
+        .iter()
+        .map(|p| (p[0] - mean[0]).powi(2) + (p[1] - mean[1]).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    if !(spread > 0.0) {
+        return None;
+    }
+    let mut ata = nalgebra::Matrix5::<f64>::zeros();
+    let mut atb = nalgebra::Vector5::<f64>::zeros();
+    for p in points {
+        let (u, v) = ((p[0] - mean[0]) / spread, (p[1] - mean[1]) / spread);
+        let row = nalgebra::Vector5::new(u * u, u * v, v * v, u, v);
+        ata += row * row.transpose();
+        atb += row;
+    }
+    let s = ata.lu().solve(&atb)?;
+    let (a, b, c, d, e) = (s[0], s[1], s[2], s[3], s[4]);
+    let m = Matrix2::new(a, 0.5 * b, 0.5 * b, c);
+    let centre = m.lu().solve(&nalgebra::Vector2::new(-0.5 * d, -0.5 * e))?;
+    let (u0, v0) = (centre[0], centre[1]);
+    let k = 1.0 + a * u0 * u0 + b * u0 * v0 + c * v0 * v0;
+    let eigen = SymmetricEigen::new(m);
+    let (l_small, l_big, axis) = if eigen.eigenvalues[0] <= eigen.eigenvalues[1] {
+        (eigen.eigenvalues[0], eigen.eigenvalues[1], eigen.eigenvectors.column(0).into_owned())
+    } else {
+        (eigen.eigenvalues[1], eigen.eigenvalues[0], eigen.eigenvectors.column(1).into_owned())
+    };
+    if !(l_small > 0.0 && k > 0.0) {
+        return None;
+    }
+    let angle = axis[1].atan2(axis[0]).to_degrees().rem_euclid(180.0);
+    Some(Ellipse {
+        centre: [mean[0] + u0 * spread, mean[1] + v0 * spread],
+        semi_major: (k / l_small).sqrt() * spread,
+        semi_minor: (k / l_big).sqrt() * spread,
+        angle_deg: angle,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ellipse_points(c: Point, a: f64, b: f64, rot: f64, n: usize) -> Vec<Point> {
+        (0..n)
+            .map(|i| {
+                let t = i as f64 / n as f64 * std::f64::consts::TAU;
+                let (x, y) = (a * t.cos(), b * t.sin());
+                let (s, co) = rot.sin_cos();
+                [c[0] + co * x - s * y, c[1] + s * x + co * y]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn ellipse_fit_recovers_axes_and_angle() {
+        let pts = ellipse_points([30.0, -20.0], 12.0, 9.5, 0.6, 200);
+        let e = fit_ellipse(&pts).expect("ellipse");
+        assert!((e.semi_major - 12.0).abs() < 1e-9, "{e:?}");
+        assert!((e.semi_minor - 9.5).abs() < 1e-9);
+        assert!((e.angle_deg - 0.6f64.to_degrees()).abs() < 1e-6);
+        assert!((e.centre[0] - 30.0).abs() < 1e-9 && (e.centre[1] + 20.0).abs() < 1e-9);
+    }
+
+    fn point(intended: Point, actual: Point) -> PathPoint {
+        PathPoint {
+            time: 0.0,
+            intended: [intended[0], intended[1], 0.2],
+            actual: [actual[0], actual[1], 0.2],
+            deviation: 0.0,
+            deposited: true,
+            layer: 0,
+        }
+    }
+
+    #[test]
+    fn circle_printed_as_an_oval_is_measured() {
+        let intended = ellipse_points([5.0, 5.0], 10.0, 10.0, 0.0, 100);
+        let actual = ellipse_points([5.2, 5.0], 10.3, 9.8, 0.0, 100);
+        let mut path: Vec<PathPoint> =
+            intended.iter().zip(&actual).map(|(i, a)| point(*i, *a)).collect();
+        path.push(path[0]);
+        let found = find_circles(&path);
+        assert_eq!(found.len(), 1);
+        let f = &found[0];
+        assert!((f.intended_diameter - 20.0).abs() < 1e-6);
+        let e = f.ellipse.expect("ellipse");
+        assert!((2.0 * e.semi_major - 20.6).abs() < 1e-6 && (2.0 * e.semi_minor - 19.6).abs() < 1e-6);
+        assert!(f.roundness > 0.45 && f.roundness < 0.55, "{}", f.roundness);
+    }
+
+    #[test]
+    fn a_square_is_not_a_circle() {
+        let corners = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]];
+        let mut path = Vec::new();
+        for k in 0..4 {
+            let (a, b) = (corners[k], corners[(k + 1) % 4]);
+            for i in 0..10 {
+                let t = i as f64 / 10.0;
+                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                path.push(point(p, p));
+            }
+        }
+        path.push(path[0]);
+        assert!(find_circles(&path).is_empty());
+    }
+}

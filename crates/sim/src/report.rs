@@ -1,0 +1,268 @@
+//! The simulation report: numbers (text + JSON) and pictures (overlay of intended vs actual path coloured by
+//! deviation, heat map of deviation over the bed), for one run or a before/after correction pair.
+
+use crate::error::SimulationError;
+use crate::features::CircleFeature;
+use crate::metrics::{PathPoint, StatsSummary};
+use crate::scenario::{CorrectionSummary, Simulation};
+use plot::{ColourScale, Figure, Grid, Layer, Rgb};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Segments drawn at most in an overlay (the kept path is thinned evenly beyond this).
+const MAX_DRAWN_SEGMENTS: usize = 30_000;
+/// Heat-map cells across the larger side of the printed area.
+const HEAT_CELLS: f64 = 120.0;
+
+/// Statistics of one layer.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LayerReport {
+    pub index: usize,
+    pub z: f64,
+    pub stats: StatsSummary,
+}
+
+/// The numbers of one simulation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunReport {
+    pub deposited: StatsSummary,
+    pub all_motion: StatsSummary,
+    pub layers: Vec<LayerReport>,
+    pub circles: Vec<CircleFeature>,
+    pub steps: Vec<(String, u64)>,
+    pub print_time: f64,
+    /// Largest time error / local step resolution (when tracked; ≤ 1 means within step resolution).
+    pub worst_resolution_ratio: Option<f64>,
+    pub warnings: usize,
+}
+
+impl RunReport {
+    pub fn new(sim: &Simulation) -> Self {
+        let r = &sim.replay;
+        RunReport {
+            deposited: r.deposited.summary(),
+            all_motion: r.all.summary(),
+            layers: r
+                .layers
+                .iter()
+                .enumerate()
+                .map(|(index, l)| LayerReport {
+                    index,
+                    z: l.z,
+                    stats: l.stats.summary(),
+                })
+                .collect(),
+            circles: sim.circles.clone(),
+            steps: r.steps.clone(),
+            print_time: r.end_time,
+            worst_resolution_ratio: r.worst_resolution_ratio,
+            warnings: r.warnings.len(),
+        }
+    }
+}
+
+/// Everything written to `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    pub believed_config: String,
+    pub actual_config: String,
+    pub gcode: String,
+    pub before: RunReport,
+    pub correction: Option<CorrectionSummary>,
+    pub after: Option<RunReport>,
+}
+
+impl Report {
+    /// The human-readable report.
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "jointspace simulate: {}", self.gcode);
+        let _ = writeln!(s, "believed machine: {}\nactual machine:   {}", self.believed_config, self.actual_config);
+        run_text(&mut s, "as configured", &self.before);
+        if let Some(c) = &self.correction {
+            let _ = writeln!(s, "\ncalibration: {}", c.method);
+            let _ = writeln!(s, "  {:<20} {:>12} {:>12} {:>12}", "parameter", "believed", "measured", "actual");
+            for v in &c.values {
+                let _ = writeln!(s, "  {:<20} {:>12.6} {:>12.6} {:>12.6}", v.name, v.believed, v.measured, v.actual);
+            }
+            let _ = writeln!(s, "  fit rms {:.4} mm", c.rms);
+        }
+        if let Some(after) = &self.after {
+            run_text(&mut s, "after correction", after);
+        }
+        s
+    }
+}
+
+fn run_text(s: &mut String, title: &str, r: &RunReport) {
+    let d = &r.deposited;
+    let _ = writeln!(s, "\n== {title} ==");
+    let _ = writeln!(
+        s,
+        "deposited path: max deviation {:.4} mm (at {:.2}, {:.2}), rms {:.4} mm; same-instant error max {:.4}, rms {:.4} mm",
+        d.max_path_deviation, d.worst_at[0], d.worst_at[1], d.rms_path_deviation, d.max_time_error, d.rms_time_error
+    );
+    let _ = writeln!(
+        s,
+        "assembly error alone (true vs believed machine, same motor state): max {:.4} mm, rms {:.4} mm; max Z error {:.4} mm",
+        d.max_model_error, d.rms_model_error, d.max_z_error
+    );
+    if let Some(ratio) = r.worst_resolution_ratio {
+        let _ = writeln!(s, "worst error / local step resolution: {ratio:.3}");
+    }
+    let _ = writeln!(s, "print time {:.1} s, {} samples; steps: {}", r.print_time, d.samples, steps_text(&r.steps));
+    let _ = writeln!(s, "per layer:  layer      z   max dev   rms dev   max model");
+    for l in &r.layers {
+        let _ = writeln!(
+            s,
+            "           {:>5} {:>6.2} {:>9.4} {:>9.4} {:>11.4}",
+            l.index, l.z, l.stats.max_path_deviation, l.stats.rms_path_deviation, l.stats.max_model_error
+        );
+    }
+    if !r.circles.is_empty() {
+        let _ = writeln!(s, "circles (mm):  layer  centre           Ø intended  Ø actual  roundness  ellipse axes (major × minor @ angle)  centre shift");
+        for c in &r.circles {
+            let axes = c.ellipse.map_or("-".to_string(), |e| {
+                format!("{:.4} × {:.4} @ {:.1}°", 2.0 * e.semi_major, 2.0 * e.semi_minor, e.angle_deg)
+            });
+            let _ = writeln!(
+                s,
+                "               {:>5}  ({:>7.2}, {:>7.2}) {:>10.4} {:>9.4} {:>10.4}  {axes:<36} {:.4}",
+                c.layer, c.intended_centre[0], c.intended_centre[1], c.intended_diameter, c.actual_diameter, c.roundness,
+                c.centre_shift()
+            );
+        }
+    }
+}
+
+fn steps_text(steps: &[(String, u64)]) -> String {
+    steps.iter().map(|(n, c)| format!("{n} {c}")).collect::<Vec<_>>().join(", ")
+}
+
+/// Write `report.txt`, `report.json`, `overlay.png/.svg`, `deviation-map.png` (and `-after` pictures).
+pub fn write_report(
+    dir: &Path,
+    report: &Report,
+    before: &Simulation,
+    after: Option<&Simulation>,
+) -> Result<(), SimulationError> {
+    std::fs::create_dir_all(dir).map_err(|e| output_error(dir, &e))?;
+    write_file(&dir.join("report.txt"), report.text().as_bytes())?;
+    let json = serde_json::to_string_pretty(report).map_err(|e| output_error(dir, &e))?;
+    write_file(&dir.join("report.json"), json.as_bytes())?;
+    write_pictures(dir, "", "as configured", before)?;
+    if let Some(after) = after {
+        write_pictures(dir, "-after", "after correction", after)?;
+    }
+    Ok(())
+}
+
+fn write_pictures(dir: &Path, suffix: &str, title: &str, sim: &Simulation) -> Result<(), SimulationError> {
+    let overlay = overlay_figure(&sim.replay.path, title);
+    overlay.write_png(&dir.join(format!("overlay{suffix}.png")))?;
+    overlay.write_svg(&dir.join(format!("overlay{suffix}.svg")))?;
+    if let Some(map) = deviation_map(&sim.replay.path, title)? {
+        map.write_png(&dir.join(format!("deviation-map{suffix}.png")))?;
+    }
+    Ok(())
+}
+
+fn output_error(path: &Path, e: &dyn std::fmt::Display) -> SimulationError {
+    SimulationError::Output {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+/// Write through a temporary file renamed into place.
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SimulationError> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(|e| output_error(path, &e))?;
+    std::fs::rename(&tmp, path).map_err(|e| output_error(path, &e))
+}
+
+/// Intended path (grey) and actual deposited path coloured by its deviation.
+pub fn overlay_figure(path: &[PathPoint], title: &str) -> Figure {
+    let deposited_pairs: Vec<(&PathPoint, &PathPoint)> = path
+        .windows(2)
+        .filter(|w| w[0].deposited && w[1].deposited)
+        .map(|w| (&w[0], &w[1]))
+        .collect();
+    let stride = deposited_pairs.len().div_ceil(MAX_DRAWN_SEGMENTS).max(1);
+    let drawn: Vec<(&PathPoint, &PathPoint)> = deposited_pairs.iter().step_by(stride).copied().collect();
+    let xy = |p: [f64; 3]| [p[0], p[1]];
+    let scale = ColourScale::fit(drawn.iter().map(|(_, b)| b.deviation), "path deviation (mm)");
+    let max = drawn.iter().map(|(_, b)| b.deviation).fold(0.0, f64::max);
+    let mut fig = Figure::new(format!("Intended (grey) vs actual path, {title}"));
+    fig.notes.push(format!("max deviation {max:.4} mm; every {stride}. segment drawn"));
+    fig = fig.with_layer(Layer::Segments {
+        segments: drawn.iter().map(|(a, b)| [xy(a.intended), xy(b.intended)]).collect(),
+        values: vec![0.0; drawn.len()],
+        scale: ColourScale { min: 0.0, max: 1.0, label: String::new(), log: false },
+        width: 3.0,
+    });
+    // The grey underlay: colour the intended segments uniformly grey by drawing them as a polyline set.
+    fig.layers.clear();
+    let mut run: Vec<[f64; 2]> = Vec::new();
+    for (a, b) in &drawn {
+        if run.last().is_some_and(|l| (l[0] - a.intended[0]).hypot(l[1] - a.intended[1]) > 1e-9) {
+            fig.layers.push(grey_line(std::mem::take(&mut run)));
+        }
+        if run.is_empty() {
+            run.push(xy(a.intended));
+        }
+        run.push(xy(b.intended));
+    }
+    if run.len() > 1 {
+        fig.layers.push(grey_line(run));
+    }
+    fig.layers.push(Layer::Segments {
+        segments: drawn.iter().map(|(a, b)| [xy(a.actual), xy(b.actual)]).collect(),
+        values: drawn.iter().map(|(_, b)| b.deviation).collect(),
+        scale: scale.clone(),
+        width: 1.2,
+    });
+    fig.colour_bar = Some(scale);
+    fig
+}
+
+fn grey_line(points: Vec<[f64; 2]>) -> Layer {
+    Layer::Polyline {
+        points,
+        colour: Rgb(170, 170, 170),
+        width: 3.0,
+    }
+}
+
+/// Largest deviation per cell over the bed, from the deposited path.
+pub fn deviation_map(path: &[PathPoint], title: &str) -> Result<Option<Figure>, SimulationError> {
+    let dep: Vec<&PathPoint> = path.iter().filter(|p| p.deposited).collect();
+    if dep.is_empty() {
+        return Ok(None);
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in &dep {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p.intended[k]);
+            hi[k] = hi[k].max(p.intended[k]);
+        }
+    }
+    let cell = ((hi[0] - lo[0]).max(hi[1] - lo[1]) / HEAT_CELLS).max(0.5);
+    let nx = ((hi[0] - lo[0]) / cell).floor() as usize + 1;
+    let ny = ((hi[1] - lo[1]) / cell).floor() as usize + 1;
+    let mut values: Vec<Option<f64>> = vec![None; nx * ny];
+    for p in &dep {
+        let ix = (((p.intended[0] - lo[0]) / cell) as usize).min(nx - 1);
+        let iy = (((p.intended[1] - lo[1]) / cell) as usize).min(ny - 1);
+        let v = &mut values[iy * nx + ix];
+        *v = Some(v.map_or(p.deviation, |old| old.max(p.deviation)));
+    }
+    let scale = ColourScale::fit(values.iter().flatten().copied(), "max path deviation (mm)");
+    let grid = Grid::new(lo[0], lo[1], cell, nx, ny, values)?;
+    let mut fig = Figure::new(format!("Deviation over the bed, {title}"));
+    fig.notes.push(format!("{cell:.2} mm cells; empty cells: nothing deposited"));
+    fig = fig.with_layer(Layer::Heatmap { grid, scale: scale.clone() });
+    fig.colour_bar = Some(scale);
+    Ok(Some(fig))
+}

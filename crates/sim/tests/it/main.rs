@@ -1,0 +1,3 @@
+//! Integration tests of the virtual printer.
+
+mod quick;

@@ -13,15 +13,18 @@ const MACHINE: &str = include_str!("../../examples/machines/polar.cfg");
 fn axis_map() -> &'static AxisMap {
     static MAP: OnceLock<AxisMap> = OnceLock::new();
     MAP.get_or_init(|| {
-        let machine =
-            config::MachineConfig::from_str(MACHINE, "examples/machines/polar.cfg").expect("example machine is valid");
-        let kin: Arc<dyn Kinematics> = Arc::from(kinematics::build(&machine.params).expect("polar kinematics"));
+        let machine = config::MachineConfig::from_str(MACHINE, "examples/machines/polar.cfg")
+            .expect("example machine is valid");
+        let kin: Arc<dyn Kinematics> =
+            Arc::from(kinematics::build(&machine.params).expect("polar kinematics"));
         AxisMap::motors(kin, Target::Cylindrical).expect("polar axis map")
     })
 }
 
 fuzz_target!(|data: &[u8]| {
-    let Ok(mut converter) = Converter::new(axis_map().clone(), ConvertOptions::default(), Vec::new()) else {
+    let Ok(mut converter) =
+        Converter::new(axis_map().clone(), ConvertOptions::default(), Vec::new())
+    else {
         return;
     };
     if convert_gcode(data, "fuzz.gcode", &mut converter).is_err() {
@@ -29,6 +32,9 @@ fuzz_target!(|data: &[u8]| {
     }
     if let Ok((out, _stats)) = converter.finish() {
         let text = String::from_utf8_lossy(&out);
-        assert!(!text.contains("NaN") && !text.contains("inf"), "non-finite number in output:\n{text}");
+        assert!(
+            !text.contains("NaN") && !text.contains("inf"),
+            "non-finite number in output:\n{text}"
+        );
     }
 });

@@ -8,13 +8,18 @@ use gcode::{Command, Commands};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let lines = data.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
+    // CR, LF and CR LF all end a line; counting CR and LF separately bounds the line count from above.
+    let lines = data.iter().filter(|&&b| b == b'\n' || b == b'\r').count() as u64 + 1;
     let mut commands = Commands::from_reader(data, "fuzz.gcode");
     while let Some(result) = commands.next_command() {
         match result {
             Ok(command) => check_finite(&command.value),
             Err(e) => {
-                assert!(e.span.line >= 1 && e.span.line <= lines, "error on line {} of {lines}", e.span.line);
+                assert!(
+                    e.span.line >= 1 && e.span.line <= lines,
+                    "error on line {} of {lines}",
+                    e.span.line
+                );
                 // Rendering the message must not panic either.
                 let _ = e.to_string();
             }
@@ -44,5 +49,8 @@ fn check_finite(command: &Command) {
         Command::SpeedFactor(v) | Command::ExtrudeFactor(v) => vec![*v],
         _ => Vec::new(),
     };
-    assert!(numbers.iter().all(|v| v.is_finite()), "non-finite number in {command:?}");
+    assert!(
+        numbers.iter().all(|v| v.is_finite()),
+        "non-finite number in {command:?}"
+    );
 }

@@ -22,7 +22,11 @@ struct MonotoneSink {
 
 impl StepSink for MonotoneSink {
     fn step(&mut self, clock: u64, _dir: bool) {
-        assert!(clock >= self.last_clock, "step clock went back from {} to {clock}", self.last_clock);
+        assert!(
+            clock >= self.last_clock,
+            "step clock went back from {} to {clock}",
+            self.last_clock
+        );
         self.last_clock = clock;
         self.steps += 1;
     }
@@ -31,7 +35,8 @@ impl StepSink for MonotoneSink {
 fn machine() -> &'static config::MachineConfig {
     static MACHINE_CONFIG: OnceLock<config::MachineConfig> = OnceLock::new();
     MACHINE_CONFIG.get_or_init(|| {
-        config::MachineConfig::from_str(MACHINE, "examples/machines/cartesian.cfg").expect("example machine is valid")
+        config::MachineConfig::from_str(MACHINE, "examples/machines/cartesian.cfg")
+            .expect("example machine is valid")
     })
 }
 
@@ -45,7 +50,12 @@ fuzz_target!(|data: &[u8]| {
     });
     let motors = setup.kinematics.motors().len() + usize::from(extruder.is_some());
     let sinks: Vec<MonotoneSink> = (0..motors).map(|_| MonotoneSink::default()).collect();
-    let pipeline = StepPipeline::new(setup.kinematics.as_ref(), extruder, StepGenConfig::default(), sinks);
+    let pipeline = StepPipeline::new(
+        setup.kinematics.as_ref(),
+        extruder,
+        StepGenConfig::default(),
+        sinks,
+    );
     match plan_gcode(&setup, data, "fuzz.gcode", pipeline) {
         Ok((pipeline, summary)) => {
             assert!(

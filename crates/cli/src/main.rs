@@ -29,6 +29,13 @@ enum Command {
     Check(cmd::run::CheckArgs),
     /// Draw where the machine reaches and its resolution (mm per motor step) across the bed.
     Workspace(cmd::workspace::Args),
+    /// Rewrite G-code for firmware without these kinematics (radius/angle or joint angles), with a bounded path error.
+    Convert(cmd::convert::Args),
+    /// Calibrate: the polar bed's rotation centre, or SCARA arm geometry.
+    #[command(subcommand)]
+    Calibrate(cmd::calibrate::Command),
+    /// Simulate the printer as built (with assembly errors): the deformation of a print, and its correction.
+    Simulate(cmd::simulate::Args),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +46,9 @@ fn main() -> ExitCode {
         Command::Run(args) => cmd::run::run(args),
         Command::Check(args) => cmd::run::check(args),
         Command::Workspace(args) => cmd::workspace::run(args),
+        Command::Convert(args) => cmd::convert::run(args),
+        Command::Calibrate(command) => cmd::calibrate::run(command),
+        Command::Simulate(args) => cmd::simulate::run(args),
     };
     match result {
         Ok(code) => code,

@@ -17,6 +17,9 @@ pub enum ErrorKind {
     InvalidUtf8,
     #[error("line longer than {limit} bytes")]
     LineTooLong { limit: usize },
+    /// Bounds the memory one line may take: words are kept per line until the line is interpreted.
+    #[error("more than {limit} words, parameters or comments on one line")]
+    TooManyTokens { limit: usize },
     #[error("invalid number")]
     InvalidNumber,
     #[error("number out of range")]

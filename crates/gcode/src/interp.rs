@@ -674,11 +674,15 @@ fn invalid_s(line: &Line<'_>) -> Fail {
     Box::new((span, ErrorKind::InvalidParameter("S".to_owned())))
 }
 
-/// `P` of an arc: a whole number of extra turns.
+/// Most extra turns an arc's `P` may ask for. Real prints use a handful; the bound keeps a stray
+/// `P4000000000` from becoming trillions of chords downstream.
+pub const MAX_ARC_TURNS: u32 = 1000;
+
+/// `P` of an arc: a whole number of extra turns, at most [`MAX_ARC_TURNS`].
 fn turns(word: &Word) -> Result<u32, Fail> {
     let value = required(word)?;
     let invalid = || Box::new((word.span, ErrorKind::InvalidParameter("P".to_owned())));
-    if value < 0.0 || value.fract() != 0.0 || value > f64::from(u32::MAX) {
+    if value < 0.0 || value.fract() != 0.0 || value > f64::from(MAX_ARC_TURNS) {
         return Err(invalid());
     }
     Ok(value as u32)
@@ -839,9 +843,11 @@ mod tests {
     }
 
     fn first_error(text: &str) -> GcodeError {
-        Commands::from_reader(text.as_bytes(), "t")
-            .find_map(Result::err)
-            .expect("an error")
+        first_error_or_none(text).expect("an error")
+    }
+
+    fn first_error_or_none(text: &str) -> Option<GcodeError> {
+        Commands::from_reader(text.as_bytes(), "t").find_map(Result::err)
     }
 
     fn moves(commands: &[Command]) -> Vec<Move> {
@@ -957,6 +963,16 @@ mod tests {
             first_error("G18\nG2 X1 I1").kind,
             ErrorKind::ArcPlaneUnsupported
         );
+    }
+
+    #[test]
+    fn arc_turns_are_bounded() {
+        let full_circles = |p: &str| format!("G1 X10 Y0\nG2 X10 Y0 I-10 J0 {p}");
+        assert!(first_error_or_none(&full_circles(&format!("P{MAX_ARC_TURNS}"))).is_none());
+        let err = first_error_or_none(&full_circles("P4000000000"))
+            .expect("P beyond the bound is an error");
+        assert_eq!(err.kind, ErrorKind::InvalidParameter("P".to_owned()));
+        assert_eq!((err.span.line, err.span.column), (2, 19));
     }
 
     #[test]

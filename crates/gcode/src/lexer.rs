@@ -254,6 +254,24 @@ impl LexError {
     }
 }
 
+/// Most words (and, separately, extended parameters and comments) one line may hold. Real lines have a
+/// dozen; the bound keeps a 32 MiB line of `X1X1…` from taking gigabytes of token storage.
+pub const MAX_TOKENS_PER_LINE: usize = 1024;
+
+/// An error when a token vector already holds [`MAX_TOKENS_PER_LINE`] entries.
+fn check_room(len: usize, start: usize, end: usize) -> Result<(), LexError> {
+    if len >= MAX_TOKENS_PER_LINE {
+        return Err(LexError::new(
+            ErrorKind::TooManyTokens {
+                limit: MAX_TOKENS_PER_LINE,
+            },
+            start,
+            end,
+        ));
+    }
+    Ok(())
+}
+
 /// Lexes `text` (line `line`) into `tokens`.
 pub fn lex_line(text: &str, line: u64, tokens: &mut LineTokens) -> Result<(), LexError> {
     tokens.clear(line);
@@ -519,6 +537,7 @@ impl Lexer<'_, '_> {
                 }
             };
             let letter = b.to_ascii_uppercase();
+            check_room(self.tokens.words.len(), start, pos)?;
             self.tokens.words.push(Word {
                 letter,
                 value,
@@ -601,6 +620,7 @@ impl Lexer<'_, '_> {
             }
             ((value_start, self.pos), false)
         };
+        check_room(self.tokens.ext.len(), start, self.pos)?;
         self.tokens.ext.push(ExtRaw {
             key: (to_u32(key.0), to_u32(key.1)),
             value: (to_u32(value.0), to_u32(value.1)),
@@ -615,6 +635,7 @@ impl Lexer<'_, '_> {
     fn semicolon_comment(&mut self) -> Result<(), LexError> {
         let start = self.pos;
         let end = self.bytes.len();
+        check_room(self.tokens.comments.len(), start, end)?;
         self.tokens.comments.push(CommentRaw {
             text: (to_u32(start + 1), to_u32(end)),
             parenthesised: false,
@@ -630,6 +651,7 @@ impl Lexer<'_, '_> {
         let close = memchr::memchr(b')', &self.bytes[start + 1..])
             .map(|i| start + 1 + i)
             .ok_or_else(|| LexError::new(ErrorKind::UnterminatedComment, start, start + 1))?;
+        check_room(self.tokens.comments.len(), start, close + 1)?;
         self.tokens.comments.push(CommentRaw {
             text: (to_u32(start + 1), to_u32(close)),
             parenthesised: true,
@@ -800,6 +822,32 @@ mod tests {
         assert!(matches!(
             lex_err(&bad).kind,
             ErrorKind::ChecksumMismatch { .. }
+        ));
+    }
+
+    #[test]
+    fn a_line_holds_at_most_the_token_limit() {
+        let full = format!("G1{}", " X1".repeat(MAX_TOKENS_PER_LINE));
+        assert_eq!(lex(&full).words.len(), MAX_TOKENS_PER_LINE);
+        let over = format!("{full} Y2");
+        let err = lex_err(&over);
+        assert_eq!(
+            err.kind,
+            ErrorKind::TooManyTokens {
+                limit: MAX_TOKENS_PER_LINE
+            }
+        );
+        // The error points at the first word past the limit.
+        assert_eq!(&over[err.start..err.end], "Y2");
+        let comments = format!("G1 X1{}", "(c)".repeat(MAX_TOKENS_PER_LINE + 1));
+        assert!(matches!(
+            lex_err(&comments).kind,
+            ErrorKind::TooManyTokens { .. }
+        ));
+        let ext = format!("SET_X{}", " A=1".repeat(MAX_TOKENS_PER_LINE + 1));
+        assert!(matches!(
+            lex_err(&ext).kind,
+            ErrorKind::TooManyTokens { .. }
         ));
     }
 

@@ -55,6 +55,15 @@ pub fn split(
     }
     let dir = [(end[0] - start[0]) / length, (end[1] - start[1]) / length, (end[2] - start[2]) / length];
     let line = Line { start, dir, length };
+    // Fast path: bounds over the whole move; most moves are nowhere near a limit.
+    let slack = limits.iter().all(|l| {
+        let profile = Profile::new(kin, l.motor, &line);
+        let (v, a) = caps(l, profile.bounds(kin, &line, 0.0, length), speed, accel);
+        v >= speed && a >= accel
+    });
+    if slack {
+        return Vec::new();
+    }
     let profiles: Vec<(MotorLimit, Profile)> =
         limits.iter().map(|l| (*l, Profile::new(kin, l.motor, &line))).collect();
     let mut cuts = vec![0.0, length];

@@ -10,9 +10,12 @@ pub mod machine;
 pub mod metrics;
 pub mod motor;
 pub mod replay;
+pub mod report;
 pub mod scenario;
 
 pub use error::SimulationError;
 pub use machine::{Machine, motor_model_from_config};
 pub use motor::MotorError;
 pub use replay::{Replay, ReplayOptions, replay};
+pub use report::{Report, RunReport, write_report};
+pub use scenario::{ClosedLoop, Simulation, closed_loop, simulate};

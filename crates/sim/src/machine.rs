@@ -31,8 +31,8 @@ impl Machine {
         true_params: &MachineParams,
         motor_model: Vec<MotorError>,
     ) -> Result<Machine, SimulationError> {
-        let kinematics = kinematics::build(true_params)
-            .map_err(|e| SimulationError::Machine(e.to_string()))?;
+        let kinematics =
+            kinematics::build(true_params).map_err(|e| SimulationError::Machine(e.to_string()))?;
         let count = kinematics.motors().len();
         let motors = if motor_model.is_empty() {
             vec![MotorError::default(); count]
@@ -76,7 +76,8 @@ impl Machine {
 
 /// Reads the `[sim]` section (if any) into one [`MotorError`] per kinematic motor.
 pub fn motor_model_from_config(cfg: &MachineConfig) -> Result<Vec<MotorError>, SimulationError> {
-    let kin = kinematics::build(&cfg.params).map_err(|e| SimulationError::Machine(e.to_string()))?;
+    let kin =
+        kinematics::build(&cfg.params).map_err(|e| SimulationError::Machine(e.to_string()))?;
     let section = cfg.document.section("sim");
     let default_micro = match section {
         Some(s) => s.get_f64_or("microstep_error", 0.0, Bounds::NONE.min(0.0).max(0.5))?,
@@ -111,6 +112,19 @@ pub fn motor_model_from_config(cfg: &MachineConfig) -> Result<Vec<MotorError>, S
             };
         }
         out.push(e);
+    }
+    if let Some(s) = section
+        && let Some(entry) = s.unused_entries().next()
+    {
+        return Err(s
+            .error_at(
+                entry.key(),
+                format!(
+                    "unknown [sim] key '{}' (see the sim crate's machine module)",
+                    entry.key()
+                ),
+            )
+            .into());
     }
     Ok(out)
 }
@@ -171,6 +185,18 @@ step_scale_error_stepper_arm: 0.002
         let cfg = MachineConfig::from_str(&text, "actual.cfg").expect("config");
         let err = Machine::from_config(&cfg).expect_err("must refuse");
         assert!(err.to_string().contains("actual.cfg"), "{err}");
+    }
+
+    #[test]
+    fn misspelt_sim_key_is_refused_at_its_line() {
+        let text = POLAR.replace("backlash_stepper_bed", "backlash_stepper_bedd");
+        let cfg = MachineConfig::from_str(&text, "actual.cfg").expect("config");
+        let err = Machine::from_config(&cfg).expect_err("must refuse");
+        let msg = err.to_string();
+        assert!(
+            msg.contains("actual.cfg:") && msg.contains("backlash_stepper_bedd"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -49,9 +49,7 @@ impl DeviationStats {
         self.sum_sq_time += s.time_error * s.time_error;
         self.max_model_error = self.max_model_error.max(s.model_error);
         self.sum_sq_model += s.model_error * s.model_error;
-        self.max_z_error = self
-            .max_z_error
-            .max((s.actual[2] - s.intended[2]).abs());
+        self.max_z_error = self.max_z_error.max((s.actual[2] - s.intended[2]).abs());
     }
 
     pub fn rms_path_deviation(&self) -> f64 {
@@ -83,7 +81,11 @@ impl DeviationStats {
 }
 
 fn rms(sum_sq: f64, n: u64) -> f64 {
-    if n == 0 { 0.0 } else { (sum_sq / n as f64).sqrt() }
+    if n == 0 {
+        0.0
+    } else {
+        (sum_sq / n as f64).sqrt()
+    }
 }
 
 /// Deviation statistics as reported (mm).
@@ -110,7 +112,8 @@ pub struct LayerStats {
     pub stats: DeviationStats,
 }
 
-/// One kept point of the path; `deviation` is the largest path deviation of the samples it stands for.
+/// One kept point of the path; `deviation` is the largest path deviation of the samples it stands for
+/// (those since the previous kept point, all with the same deposition flag).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PathPoint {
     pub time: f64,
@@ -132,6 +135,8 @@ pub(crate) struct Analysis {
     pub(crate) decimate: f64,
     max_points: usize,
     pending_deviation: f64,
+    /// The latest sample not kept (with its layer), to close a run when the deposition flag changes.
+    unkept: Option<(Sample, usize)>,
     pub(crate) worst_resolution_ratio: Option<f64>,
 }
 
@@ -148,6 +153,7 @@ impl Analysis {
             decimate,
             max_points: max_points.max(16),
             pending_deviation: 0.0,
+            unkept: None,
             worst_resolution_ratio: None,
         }
     }
@@ -156,7 +162,8 @@ impl Analysis {
         self.all.add(s);
         if let Some(res) = s.resolution.filter(|r| *r > 0.0) {
             let ratio = s.time_error / res;
-            self.worst_resolution_ratio = Some(self.worst_resolution_ratio.map_or(ratio, |w| w.max(ratio)));
+            self.worst_resolution_ratio =
+                Some(self.worst_resolution_ratio.map_or(ratio, |w| w.max(ratio)));
         }
         let mut new_layer = false;
         if s.deposited {
@@ -180,25 +187,35 @@ impl Analysis {
     }
 
     fn keep(&mut self, s: &Sample, new_layer: bool) {
-        if s.deposited {
-            self.pending_deviation = self.pending_deviation.max(s.path_deviation);
+        let layer = self.layers.len().saturating_sub(1);
+        let flag_changed = self.path.last().is_some_and(|p| p.deposited != s.deposited);
+        if flag_changed && let Some((prev, prev_layer)) = self.unkept.take() {
+            // The last sample of the finished run closes it, with the deviations it stands for.
+            self.push(&prev, prev_layer);
         }
+        self.pending_deviation = self.pending_deviation.max(s.path_deviation);
         let far = self.path.last().is_none_or(|p| {
             p.deposited != s.deposited
                 || (p.actual[0] - s.actual[0]).hypot(p.actual[1] - s.actual[1]) >= self.decimate
         });
-        if !(far || new_layer) {
-            return;
+        if far || new_layer {
+            self.push(s, layer);
+        } else {
+            self.unkept = Some((*s, layer));
         }
+    }
+
+    fn push(&mut self, s: &Sample, layer: usize) {
         self.path.push(PathPoint {
             time: s.time,
             intended: s.intended,
             actual: s.actual,
-            deviation: if s.deposited { self.pending_deviation } else { s.path_deviation },
+            deviation: self.pending_deviation,
             deposited: s.deposited,
-            layer: self.layers.len().saturating_sub(1),
+            layer,
         });
         self.pending_deviation = 0.0;
+        self.unkept = None;
         if self.path.len() >= self.max_points {
             self.thin();
         }

@@ -42,10 +42,16 @@ impl MotorError {
     /// Checks that every value is usable (finite, non-negative where it must be).
     pub fn validate(&self, name: &str) -> Result<(), String> {
         if !(self.scale_error.is_finite() && self.scale_error > -1.0) {
-            return Err(format!("{name}: scale error {} must be > −1", self.scale_error));
+            return Err(format!(
+                "{name}: scale error {} must be > −1",
+                self.scale_error
+            ));
         }
         if !(self.microstep_error.is_finite() && self.microstep_error >= 0.0) {
-            return Err(format!("{name}: microstep error {} must be ≥ 0", self.microstep_error));
+            return Err(format!(
+                "{name}: microstep error {} must be ≥ 0",
+                self.microstep_error
+            ));
         }
         if self.microsteps == 0 {
             return Err(format!("{name}: microsteps must be ≥ 1"));

@@ -26,9 +26,6 @@ use trapq::{MoveSink, Piece, Queue, TrapezoidMove, Vec3};
 /// Extra path length searched for the nearest intended point beyond twice the time error (mm).
 const PATH_REACH_MARGIN: f64 = 0.1;
 
-/// Toolhead pieces handed to the step generator at a time.
-const CHUNK_PIECES: usize = 4096;
-
 /// How densely to sample and how much to keep.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReplayOptions {
@@ -39,6 +36,8 @@ pub struct ReplayOptions {
     /// Kept path points are at least this far apart (mm); doubles whenever `max_points` is reached.
     pub decimate: f64,
     pub max_points: usize,
+    /// Toolhead pieces handed to the step generator at a time (results do not depend on it).
+    pub chunk_pieces: usize,
     pub step_config: StepGenConfig,
     /// Also compute the local step resolution at every sample (3 extra forward solutions per sample).
     pub track_resolution: bool,
@@ -51,6 +50,7 @@ impl Default for ReplayOptions {
             path_window: 2.0,
             decimate: 0.05,
             max_points: 400_000,
+            chunk_pieces: 4096,
             step_config: StepGenConfig::default(),
             track_resolution: false,
         }
@@ -86,7 +86,9 @@ pub fn replay(
     options: &ReplayOptions,
 ) -> Result<Replay, SimulationError> {
     let believed_kin = believed.kinematics.as_ref();
-    if believed_kin.motors().len() != actual.kinematics().motors().len() {
+    if believed_kin.name() != actual.kinematics().name()
+        || believed_kin.motors().len() != actual.kinematics().motors().len()
+    {
         return Err(SimulationError::Machine(format!(
             "the believed machine ({}) and the true machine ({}) have different motors",
             believed_kin.name(),
@@ -128,9 +130,7 @@ impl History {
         while self.cursor + 1 < self.pieces.len() && self.pieces[self.cursor + 1].print_time <= t {
             self.cursor += 1;
         }
-        self.pieces
-            .get(self.cursor)
-            .filter(|p| p.print_time <= t)
+        self.pieces.get(self.cursor).filter(|p| p.print_time <= t)
     }
 
     /// Drop pieces that ended before `t` (never the cursor piece).
@@ -207,13 +207,15 @@ impl<'k> Recorder<'k> {
             .zip(actual.motor_errors())
             .map(|(m, e)| MotorTrack::new(*e, m.step_distance, 0.0))
             .collect();
-        let grid_ticks = (options.grid_interval * options.step_config.clock_hz).round().max(1.0) as u64;
+        let grid_ticks = (options.grid_interval * options.step_config.clock_hz)
+            .round()
+            .max(1.0) as u64;
         Recorder {
             believed,
             actual,
             options,
             generator: None,
-            chunk: Vec::with_capacity(CHUNK_PIECES),
+            chunk: Vec::with_capacity(options.chunk_pieces.max(1)),
             sinks: vec![Vec::new(); n],
             queues: vec![VecDeque::new(); n],
             emitted_net: vec![0; n],
@@ -250,7 +252,12 @@ impl<'k> Recorder<'k> {
         let mut readings = vec![0.0; self.tracks.len()];
         self.believed
             .inverse(xyz, &mut readings)
-            .map_err(|source| SimulationError::Forward { time: 0.0, source })?;
+            .map_err(|e| {
+                SimulationError::Machine(format!(
+                    "declared position ({:.3}, {:.3}, {:.3}) is unreachable on the believed machine: {e}",
+                    xyz[0], xyz[1], xyz[2]
+                ))
+            })?;
         for (track, r) in self.tracks.iter_mut().zip(&readings) {
             track.reseat(*r);
         }
@@ -313,6 +320,10 @@ impl<'k> Recorder<'k> {
 
     /// Sample and apply every step event up to `horizon` (inclusive).
     fn advance(&mut self, horizon: u64) -> Result<(), SimulationError> {
+        if self.generator.is_none() {
+            // No declared position yet: the machine's state is unknown, there is nothing to compare.
+            return Ok(());
+        }
         loop {
             let event = self
                 .queues
@@ -369,7 +380,10 @@ impl<'k> Recorder<'k> {
         let (intended, moving) = match self.toolhead.at(time) {
             Some(p) => {
                 let local = (time - p.print_time).min(p.duration);
-                (p.position(local), local < p.duration && p.velocity(local) > 1e-9)
+                (
+                    p.position(local),
+                    local < p.duration && p.velocity(local) > 1e-9,
+                )
             }
             None => (self.declared, false),
         };
@@ -383,7 +397,7 @@ impl<'k> Recorder<'k> {
             .path_distance(actual, 2.0 * time_error + PATH_REACH_MARGIN)
             .map_or(time_error, |d| d.min(time_error));
         let resolution = if self.options.track_resolution {
-            Some(self.resolution(actual)?)
+            Some(self.resolution(actual, time)?)
         } else {
             None
         };
@@ -405,7 +419,7 @@ impl<'k> Recorder<'k> {
     }
 
     /// XY displacement of one step of each motor, summed: the finest the machine can place the nozzle here.
-    fn resolution(&mut self, at: Vec3) -> Result<f64, SimulationError> {
+    fn resolution(&mut self, at: Vec3, time: f64) -> Result<f64, SimulationError> {
         let kin = self.actual.kinematics();
         let mut total = 0.0;
         for (i, motor) in self.believed.motors().iter().enumerate() {
@@ -413,7 +427,7 @@ impl<'k> Recorder<'k> {
             self.probe[i] += motor.step_distance;
             let p = kin
                 .forward(&self.probe)
-                .map_err(|source| SimulationError::Forward { time: 0.0, source })?;
+                .map_err(|source| SimulationError::Forward { time, source })?;
             total += (p[0] - at[0]).hypot(p[1] - at[1]);
         }
         Ok(total)
@@ -421,13 +435,22 @@ impl<'k> Recorder<'k> {
 
     /// Everything queued: finish the generator (its held-back steps are final) and sample to the end.
     fn flush_all(&mut self) -> Result<(), SimulationError> {
-        let end = self.toolhead.end_time().or(self.chunk.last().map(Piece::end_time));
+        let end = self
+            .toolhead
+            .end_time()
+            .or(self.chunk.last().map(Piece::end_time));
         self.process_chunk()?;
         if let Some(generator) = self.generator.as_mut() {
             generator.finish(&mut self.sinks)?;
             self.drain_sinks();
         }
-        let last_step = self.last_emitted.iter().flatten().copied().max().unwrap_or(0);
+        let last_step = self
+            .last_emitted
+            .iter()
+            .flatten()
+            .copied()
+            .max()
+            .unwrap_or(0);
         let horizon = end.map_or(0, |t| self.clock_of(t)).max(last_step);
         self.advance(horizon)
     }
@@ -466,7 +489,7 @@ impl MoveSink for Recorder<'_> {
         match queue {
             Queue::Toolhead => {
                 // The previous move's extruder piece has arrived by now: safe to process.
-                if self.chunk.len() >= CHUNK_PIECES
+                if self.chunk.len() >= self.options.chunk_pieces.max(1)
                     && let Err(e) = self.process_chunk()
                 {
                     return self.fail(e);

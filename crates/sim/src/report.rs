@@ -2,7 +2,7 @@
 //! deviation, heat map of deviation over the bed), for one run or a before/after correction pair.
 
 use crate::error::SimulationError;
-use crate::features::CircleFeature;
+use crate::features::{CircleFeature, QuadFeature};
 use crate::metrics::{PathPoint, StatsSummary};
 use crate::scenario::{CorrectionSummary, Simulation};
 use plot::{ColourScale, Figure, Grid, Layer, Rgb};
@@ -30,6 +30,7 @@ pub struct RunReport {
     pub all_motion: StatsSummary,
     pub layers: Vec<LayerReport>,
     pub circles: Vec<CircleFeature>,
+    pub squares: Vec<QuadFeature>,
     pub steps: Vec<(String, u64)>,
     pub print_time: f64,
     /// Largest time error / local step resolution (when tracked; ≤ 1 means within step resolution).
@@ -54,6 +55,7 @@ impl RunReport {
                 })
                 .collect(),
             circles: sim.circles.clone(),
+            squares: sim.quads.clone(),
             steps: r.steps.clone(),
             print_time: r.end_time,
             worst_resolution_ratio: r.worst_resolution_ratio,
@@ -78,13 +80,25 @@ impl Report {
     pub fn text(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "jointspace simulate: {}", self.gcode);
-        let _ = writeln!(s, "believed machine: {}\nactual machine:   {}", self.believed_config, self.actual_config);
+        let _ = writeln!(
+            s,
+            "believed machine: {}\nactual machine:   {}",
+            self.believed_config, self.actual_config
+        );
         run_text(&mut s, "as configured", &self.before);
         if let Some(c) = &self.correction {
             let _ = writeln!(s, "\ncalibration: {}", c.method);
-            let _ = writeln!(s, "  {:<20} {:>12} {:>12} {:>12}", "parameter", "believed", "measured", "actual");
+            let _ = writeln!(
+                s,
+                "  {:<20} {:>12} {:>12} {:>12}",
+                "parameter", "believed", "measured", "actual"
+            );
             for v in &c.values {
-                let _ = writeln!(s, "  {:<20} {:>12.6} {:>12.6} {:>12.6}", v.name, v.believed, v.measured, v.actual);
+                let _ = writeln!(
+                    s,
+                    "  {:<20} {:>12.6} {:>12.6} {:>12.6}",
+                    v.name, v.believed, v.measured, v.actual
+                );
             }
             let _ = writeln!(s, "  fit rms {:.4} mm", c.rms);
         }
@@ -96,12 +110,23 @@ impl Report {
 }
 
 fn run_text(s: &mut String, title: &str, r: &RunReport) {
+    run_stats_text(s, title, r);
+    circles_text(s, &r.circles);
+    quads_text(s, &r.squares);
+}
+
+fn run_stats_text(s: &mut String, title: &str, r: &RunReport) {
     let d = &r.deposited;
     let _ = writeln!(s, "\n== {title} ==");
     let _ = writeln!(
         s,
         "deposited path: max deviation {:.4} mm (at {:.2}, {:.2}), rms {:.4} mm; same-instant error max {:.4}, rms {:.4} mm",
-        d.max_path_deviation, d.worst_at[0], d.worst_at[1], d.rms_path_deviation, d.max_time_error, d.rms_time_error
+        d.max_path_deviation,
+        d.worst_at[0],
+        d.worst_at[1],
+        d.rms_path_deviation,
+        d.max_time_error,
+        d.rms_time_error
     );
     let _ = writeln!(
         s,
@@ -111,33 +136,95 @@ fn run_text(s: &mut String, title: &str, r: &RunReport) {
     if let Some(ratio) = r.worst_resolution_ratio {
         let _ = writeln!(s, "worst error / local step resolution: {ratio:.3}");
     }
-    let _ = writeln!(s, "print time {:.1} s, {} samples; steps: {}", r.print_time, d.samples, steps_text(&r.steps));
-    let _ = writeln!(s, "per layer:  layer      z   max dev   rms dev   max model");
+    let _ = writeln!(
+        s,
+        "print time {:.1} s, {} samples; steps: {}",
+        r.print_time,
+        d.samples,
+        steps_text(&r.steps)
+    );
+    let _ = writeln!(
+        s,
+        "per layer:  layer      z   max dev   rms dev   max model"
+    );
     for l in &r.layers {
         let _ = writeln!(
             s,
             "           {:>5} {:>6.2} {:>9.4} {:>9.4} {:>11.4}",
-            l.index, l.z, l.stats.max_path_deviation, l.stats.rms_path_deviation, l.stats.max_model_error
+            l.index,
+            l.z,
+            l.stats.max_path_deviation,
+            l.stats.rms_path_deviation,
+            l.stats.max_model_error
         );
     }
-    if !r.circles.is_empty() {
-        let _ = writeln!(s, "circles (mm):  layer  centre           Ø intended  Ø actual  roundness  ellipse axes (major × minor @ angle)  centre shift");
-        for c in &r.circles {
+}
+
+fn circles_text(s: &mut String, circles: &[CircleFeature]) {
+    if !circles.is_empty() {
+        let _ = writeln!(
+            s,
+            "circles (mm):  layer  centre           Ø intended  Ø actual  roundness  ellipse axes (major × minor @ angle)  centre shift"
+        );
+        for c in circles {
             let axes = c.ellipse.map_or("-".to_string(), |e| {
-                format!("{:.4} × {:.4} @ {:.1}°", 2.0 * e.semi_major, 2.0 * e.semi_minor, e.angle_deg)
+                format!(
+                    "{:.4} × {:.4} @ {:.1}°",
+                    2.0 * e.semi_major,
+                    2.0 * e.semi_minor,
+                    e.angle_deg
+                )
             });
             let _ = writeln!(
                 s,
                 "               {:>5}  ({:>7.2}, {:>7.2}) {:>10.4} {:>9.4} {:>10.4}  {axes:<36} {:.4}",
-                c.layer, c.intended_centre[0], c.intended_centre[1], c.intended_diameter, c.actual_diameter, c.roundness,
+                c.layer,
+                c.intended_centre[0],
+                c.intended_centre[1],
+                c.intended_diameter,
+                c.actual_diameter,
+                c.roundness,
                 c.centre_shift()
             );
         }
     }
 }
 
+fn quads_text(s: &mut String, quads: &[QuadFeature]) {
+    if quads.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "four-sided loops: layer  sides intended → actual (mm)            corner angles actual (°)"
+    );
+    for q in quads {
+        let sides: Vec<String> = (0..4)
+            .map(|k| format!("{:.3}→{:.3}", q.intended_sides[k], q.actual_sides[k]))
+            .collect();
+        let angles: Vec<String> = q
+            .actual_angles_deg
+            .iter()
+            .map(|a| format!("{a:.3}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "                  {:>5}  {}   {}   (worst side error {:.4} mm, angle error {:.4}°)",
+            q.layer,
+            sides.join(" "),
+            angles.join(" "),
+            q.worst_side_error(),
+            q.worst_angle_error()
+        );
+    }
+}
+
 fn steps_text(steps: &[(String, u64)]) -> String {
-    steps.iter().map(|(n, c)| format!("{n} {c}")).collect::<Vec<_>>().join(", ")
+    steps
+        .iter()
+        .map(|(n, c)| format!("{n} {c}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Write `report.txt`, `report.json`, `overlay.png/.svg`, `deviation-map.png` (and `-after` pictures).
@@ -158,7 +245,12 @@ pub fn write_report(
     Ok(())
 }
 
-fn write_pictures(dir: &Path, suffix: &str, title: &str, sim: &Simulation) -> Result<(), SimulationError> {
+fn write_pictures(
+    dir: &Path,
+    suffix: &str,
+    title: &str,
+    sim: &Simulation,
+) -> Result<(), SimulationError> {
     let overlay = overlay_figure(&sim.replay.path, title);
     overlay.write_png(&dir.join(format!("overlay{suffix}.png")))?;
     overlay.write_svg(&dir.join(format!("overlay{suffix}.svg")))?;
@@ -190,48 +282,100 @@ pub fn overlay_figure(path: &[PathPoint], title: &str) -> Figure {
         .map(|w| (&w[0], &w[1]))
         .collect();
     let stride = deposited_pairs.len().div_ceil(MAX_DRAWN_SEGMENTS).max(1);
-    let drawn: Vec<(&PathPoint, &PathPoint)> = deposited_pairs.iter().step_by(stride).copied().collect();
+    let drawn: Vec<(&PathPoint, &PathPoint)> =
+        deposited_pairs.iter().step_by(stride).copied().collect();
     let xy = |p: [f64; 3]| [p[0], p[1]];
-    let scale = ColourScale::fit(drawn.iter().map(|(_, b)| b.deviation), "path deviation (mm)");
+    let scale = ColourScale::fit(
+        drawn.iter().map(|(_, b)| b.deviation),
+        "path deviation (mm)",
+    );
     let max = drawn.iter().map(|(_, b)| b.deviation).fold(0.0, f64::max);
+    let extent = path_extent(&drawn);
+    let factor = exaggeration(extent, max);
+    let shown = |p: &PathPoint| {
+        [
+            p.intended[0] + factor * (p.actual[0] - p.intended[0]),
+            p.intended[1] + factor * (p.actual[1] - p.intended[1]),
+        ]
+    };
     let mut fig = Figure::new(format!("Intended (grey) vs actual path, {title}"));
-    fig.notes.push(format!("max deviation {max:.4} mm; every {stride}. segment drawn"));
-    fig = fig.with_layer(Layer::Segments {
-        segments: drawn.iter().map(|(a, b)| [xy(a.intended), xy(b.intended)]).collect(),
-        values: vec![0.0; drawn.len()],
-        scale: ColourScale { min: 0.0, max: 1.0, label: String::new(), log: false },
-        width: 3.0,
-    });
-    // The grey underlay: colour the intended segments uniformly grey by drawing them as a polyline set.
-    fig.layers.clear();
+    if factor > 1.0 {
+        fig.notes.push(format!("deviation drawn ×{factor}"));
+    }
+    let drawn_note = if stride == 1 {
+        "every kept segment drawn".to_string()
+    } else {
+        format!("one kept segment in {stride} drawn")
+    };
+    fig.notes
+        .push(format!("max deviation {max:.4} mm; {drawn_note}"));
+    // Grey underlay: the intended path, one polyline per connected run.
     let mut run: Vec<[f64; 2]> = Vec::new();
     for (a, b) in &drawn {
-        if run.last().is_some_and(|l| (l[0] - a.intended[0]).hypot(l[1] - a.intended[1]) > 1e-9) {
+        if run
+            .last()
+            .is_some_and(|l| (l[0] - a.intended[0]).hypot(l[1] - a.intended[1]) > 1e-5)
+        {
             fig.layers.push(grey_line(std::mem::take(&mut run)));
         }
         if run.is_empty() {
             run.push(xy(a.intended));
         }
-        run.push(xy(b.intended));
+        // Repeated points give the line joins no direction (spikes in the PNG).
+        if run
+            .last()
+            .is_some_and(|l| (l[0] - b.intended[0]).hypot(l[1] - b.intended[1]) > 1e-6)
+        {
+            run.push(xy(b.intended));
+        }
     }
     if run.len() > 1 {
         fig.layers.push(grey_line(run));
     }
     fig.layers.push(Layer::Segments {
-        segments: drawn.iter().map(|(a, b)| [xy(a.actual), xy(b.actual)]).collect(),
+        segments: drawn.iter().map(|(a, b)| [shown(a), shown(b)]).collect(),
         values: drawn.iter().map(|(_, b)| b.deviation).collect(),
         scale: scale.clone(),
-        width: 1.2,
+        width: 1.5,
     });
     fig.colour_bar = Some(scale);
     fig
+}
+
+/// Largest side of the box around the drawn intended path (mm).
+fn path_extent(drawn: &[(&PathPoint, &PathPoint)]) -> f64 {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for (_, p) in drawn {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p.intended[k]);
+            hi[k] = hi[k].max(p.intended[k]);
+        }
+    }
+    (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.0)
+}
+
+/// A round factor (1, 2, 5, 10, …) that makes the largest deviation about 2 % of the drawing: deviations
+/// of a few hundredths of a millimetre are invisible on a 150 mm print otherwise.
+fn exaggeration(extent: f64, max_deviation: f64) -> f64 {
+    if !(max_deviation > 0.0 && extent > 0.0) {
+        return 1.0;
+    }
+    let wanted = 0.02 * extent / max_deviation;
+    let mut factor = 1.0;
+    for step in [2.0, 2.5, 2.0].iter().cycle().take(30) {
+        if factor * step > wanted {
+            break;
+        }
+        factor *= step;
+    }
+    factor
 }
 
 fn grey_line(points: Vec<[f64; 2]>) -> Layer {
     Layer::Polyline {
         points,
         colour: Rgb(170, 170, 170),
-        width: 3.0,
+        width: 4.0,
     }
 }
 
@@ -261,8 +405,26 @@ pub fn deviation_map(path: &[PathPoint], title: &str) -> Result<Option<Figure>, 
     let scale = ColourScale::fit(values.iter().flatten().copied(), "max path deviation (mm)");
     let grid = Grid::new(lo[0], lo[1], cell, nx, ny, values)?;
     let mut fig = Figure::new(format!("Deviation over the bed, {title}"));
-    fig.notes.push(format!("{cell:.2} mm cells; empty cells: nothing deposited"));
-    fig = fig.with_layer(Layer::Heatmap { grid, scale: scale.clone() });
+    fig.notes.push(format!(
+        "{cell:.2} mm cells; empty cells: nothing deposited"
+    ));
+    fig = fig.with_layer(Layer::Heatmap {
+        grid,
+        scale: scale.clone(),
+    });
     fig.colour_bar = Some(scale);
     Ok(Some(fig))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exaggeration_is_a_round_factor() {
+        assert_eq!(exaggeration(150.0, 1.0), 2.0);
+        assert_eq!(exaggeration(150.0, 0.01), 200.0);
+        assert_eq!(exaggeration(150.0, 5.0), 1.0);
+        assert_eq!(exaggeration(0.0, 1.0), 1.0);
+    }
 }

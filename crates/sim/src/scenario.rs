@@ -10,12 +10,12 @@
 //!   offsets, joint zeros and the coupling go into the believed config.
 
 use crate::error::SimulationError;
-use crate::features::{CircleFeature, find_circles};
+use crate::features::{CircleFeature, QuadFeature, find_circles, find_quads};
 use crate::hall::{HallBedConfig, HallScanner};
 use crate::machine::Machine;
 use crate::replay::{Replay, ReplayOptions, replay};
-use calibrate::scara::{Measurement, ScaraGeometry, identify};
 use calibrate::scan::{ScanParams, scan_centre};
+use calibrate::scara::{Measurement, ScaraGeometry, identify};
 use config::MachineConfig;
 use kinematics::{MachineParams, PolarParams, ScaraFrame, ScaraParams};
 use motion::machine::MachineSetup;
@@ -32,6 +32,7 @@ use std::io::BufRead;
 pub struct Simulation {
     pub replay: Replay,
     pub circles: Vec<CircleFeature>,
+    pub quads: Vec<QuadFeature>,
 }
 
 /// Plan `gcode` on the believed config, run it on `actual`, measure features.
@@ -45,7 +46,12 @@ pub fn simulate(
     let setup = MachineSetup::from_config(believed)?;
     let replay = replay(&setup, actual, gcode, source_name, options)?;
     let circles = find_circles(&replay.path);
-    Ok(Simulation { replay, circles })
+    let quads = find_quads(&replay.path);
+    Ok(Simulation {
+        replay,
+        circles,
+        quads,
+    })
 }
 
 /// One corrected parameter: believed before, measured, true value.
@@ -99,7 +105,11 @@ fn correct_polar(
     seed: u64,
 ) -> Result<(PolarParams, CorrectionSummary), SimulationError> {
     let motors = actual.motor_errors();
-    let microstep_error = motors.iter().take(2).map(|m| m.microstep_error).fold(0.0, f64::max);
+    let microstep_error = motors
+        .iter()
+        .take(2)
+        .map(|m| m.microstep_error)
+        .fold(0.0, f64::max);
     let hw_cfg = HallBedConfig {
         arm_zero_offset: truth.arm_zero_offset,
         arm_lateral_offset: truth.arm_lateral_offset,
@@ -110,7 +120,8 @@ fn correct_polar(
         seed,
         ..HallBedConfig::default()
     };
-    let mut hw = HallScanner::new(hw_cfg).map_err(|e| SimulationError::Calibration(e.to_string()))?;
+    let mut hw =
+        HallScanner::new(hw_cfg).map_err(|e| SimulationError::Calibration(e.to_string()))?;
     let result = scan_centre(&mut hw, &ScanParams::default())
         .map_err(|e| SimulationError::Calibration(e.to_string()))?;
     let corrected = PolarParams {
@@ -125,7 +136,12 @@ fn correct_polar(
             result.pairs_used, result.magnet_count, result.sensor_reads, result.scan_time
         ),
         values: vec![
-            value("arm_zero_offset", believed.arm_zero_offset, result.arm_zero_offset, truth.arm_zero_offset),
+            value(
+                "arm_zero_offset",
+                believed.arm_zero_offset,
+                result.arm_zero_offset,
+                truth.arm_zero_offset,
+            ),
             value(
                 "arm_lateral_offset",
                 believed.arm_lateral_offset,
@@ -167,7 +183,10 @@ fn calibration_poses(g: &ScaraGeometry) -> Vec<(f64, f64)> {
         let q1 = (-60.0 + 12.0 * f64::from(i)).to_radians() + 0.5 * PI;
         for k in 0..11 {
             let q2 = (40.0 + 9.0 * f64::from(k)).to_radians();
-            poses.push((q1 + g.shoulder_zero, q2 + g.elbow_coupling * q1 + g.elbow_zero));
+            poses.push((
+                q1 + g.shoulder_zero,
+                q2 + g.elbow_coupling * q1 + g.elbow_zero,
+            ));
         }
     }
     poses
@@ -189,8 +208,13 @@ fn correct_scara(
     }
     let start = geometry(believed);
     let mut rng = StdRng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, PATTERN_NOISE).map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let scale: Vec<f64> = actual.motor_errors().iter().map(|m| 1.0 + m.scale_error).collect();
+    let noise =
+        Normal::new(0.0, PATTERN_NOISE).map_err(|e| SimulationError::Calibration(e.to_string()))?;
+    let scale: Vec<f64> = actual
+        .motor_errors()
+        .iter()
+        .map(|m| 1.0 + m.scale_error)
+        .collect();
     let mut data = Vec::new();
     for (line, (a, b)) in calibration_poses(&start).into_iter().enumerate() {
         let motors = [a * scale[0], b * scale[1], 0.0];
@@ -239,24 +263,55 @@ fn correct_scara(
     Ok((corrected, summary))
 }
 
-/// G-code of `layers` layers of circles (centre, radius), 128 segments each, starting with
-/// `SET_KINEMATIC_POSITION` at `start` when given.
-pub fn circles_gcode(circles: &[([f64; 2], f64)], layers: usize, start: Option<[f64; 3]>) -> String {
-    let mut s = String::from("; jointspace sim: circle test print\n");
+/// A test print: `layers` layers of circles (centre, radius; 128 segments each) and axis-aligned squares
+/// (centre, side), starting with `SET_KINEMATIC_POSITION` at `start` when given.
+pub fn test_print_gcode(
+    circles: &[([f64; 2], f64)],
+    squares: &[([f64; 2], f64)],
+    layers: usize,
+    start: Option<[f64; 3]>,
+) -> String {
+    let mut s = String::from("; jointspace sim: circle and square test print\n");
     if let Some([x, y, z]) = start {
         let _ = writeln!(s, "SET_KINEMATIC_POSITION X={x:.3} Y={y:.3} Z={z:.3}");
     }
     s.push_str("G90\nM83\n");
     const SEGMENTS: usize = 128;
+    const E_PER_MM: f64 = 0.05;
     for layer in 0..layers {
         let z = 0.3 + 0.2 * layer as f64;
         let _ = writeln!(s, ";LAYER:{layer}\nG0 Z{z:.3} F600");
         for &([cx, cy], r) in circles {
             let _ = writeln!(s, "G0 X{:.4} Y{cy:.4} F6000", cx + r);
-            let e = TAU * r / SEGMENTS as f64 * 0.05;
+            let e = TAU * r / SEGMENTS as f64 * E_PER_MM;
             for k in 1..=SEGMENTS {
                 let a = TAU * k as f64 / SEGMENTS as f64;
-                let _ = writeln!(s, "G1 X{:.4} Y{:.4} E{e:.5} F1800", cx + r * a.cos(), cy + r * a.sin());
+                let _ = writeln!(
+                    s,
+                    "G1 X{:.4} Y{:.4} E{e:.5} F1800",
+                    cx + r * a.cos(),
+                    cy + r * a.sin()
+                );
+            }
+        }
+        for &([cx, cy], side) in squares {
+            let h = 0.5 * side;
+            let corners = [
+                [cx - h, cy - h],
+                [cx + h, cy - h],
+                [cx + h, cy + h],
+                [cx - h, cy + h],
+                [cx - h, cy - h],
+            ];
+            let _ = writeln!(s, "G0 X{:.4} Y{:.4} F6000", corners[0][0], corners[0][1]);
+            for c in &corners[1..] {
+                let _ = writeln!(
+                    s,
+                    "G1 X{:.4} Y{:.4} E{:.5} F1800",
+                    c[0],
+                    c[1],
+                    side * E_PER_MM
+                );
             }
         }
     }
@@ -362,8 +417,18 @@ max_z_velocity: 50
 max_z_accel: 30
 ";
 
+/// Circles and squares of the polar demo print: one centred, the others off centre.
+pub const POLAR_CIRCLES: [([f64; 2], f64); 2] = [([0.0, 0.0], 75.0), ([30.0, 20.0], 15.0)];
+pub const POLAR_SQUARES: [([f64; 2], f64); 1] = [([-30.0, -25.0], 30.0)];
+/// Squares of the SCARA demo print.
+pub const SCARA_SQUARES: [([f64; 2], f64); 1] = [([-20.0, 170.0], 16.0)];
+
 /// Circles used for the SCARA scenario (inside the FEKT workspace, away from the base and full reach).
-pub const SCARA_CIRCLES: [([f64; 2], f64); 3] = [([0.0, 130.0], 20.0), ([-60.0, 110.0], 12.0), ([55.0, 150.0], 10.0)];
+pub const SCARA_CIRCLES: [([f64; 2], f64); 3] = [
+    ([0.0, 130.0], 20.0),
+    ([-60.0, 110.0], 12.0),
+    ([55.0, 150.0], 10.0),
+];
 
 /// Believed and actual config of a scenario, from config text plus `[printer]` overrides for the actual one.
 pub fn scenario_configs(
@@ -371,7 +436,10 @@ pub fn scenario_configs(
     actual_printer_keys: &str,
 ) -> Result<(MachineConfig, MachineConfig), SimulationError> {
     let believed = MachineConfig::from_str(text, "believed.cfg")?;
-    let actual_text = text.replace("[printer]\n", &format!("[printer]\n{actual_printer_keys}\n"));
+    let actual_text = text.replace(
+        "[printer]\n",
+        &format!("[printer]\n{actual_printer_keys}\n"),
+    );
     let actual = MachineConfig::from_str(&actual_text, "actual.cfg")?;
     Ok((believed, actual))
 }
@@ -413,11 +481,18 @@ pub fn polar_lateral_offset_loop(gcode: Option<&[u8]>) -> Result<ClosedLoop, Sim
     let text: &[u8] = match gcode {
         Some(t) => t,
         None => {
-            generated = circles_gcode(&[([0.0, 0.0], 75.0), ([30.0, 20.0], 15.0)], 3, None);
+            generated = test_print_gcode(&POLAR_CIRCLES, &POLAR_SQUARES, 3, None);
             generated.as_bytes()
         }
     };
-    closed_loop(&believed, &actual, || Ok(text), "polar-circles", &ReplayOptions::default(), 7)
+    closed_loop(
+        &believed,
+        &actual,
+        || Ok(text),
+        "polar-circles",
+        &ReplayOptions::default(),
+        7,
+    )
 }
 
 /// The SCARA demo: built with ECR 3.2 and a 0.5 mm longer proximal arm, configured as ECR 3 / 100 mm.
@@ -428,6 +503,61 @@ pub fn scara_coupling_loop() -> Result<ClosedLoop, SimulationError> {
         .replace("ecr: 3.0", "ecr: 3.2");
     let actual_cfg = MachineConfig::from_str(&actual_text, "actual.cfg")?;
     let actual = Machine::from_config(&actual_cfg)?;
-    let text = circles_gcode(&SCARA_CIRCLES, 2, Some([0.0, 130.0, 0.5]));
-    closed_loop(&believed, &actual, || Ok(text.as_bytes()), "scara-circles", &ReplayOptions::default(), 11)
+    let text = test_print_gcode(&SCARA_CIRCLES, &SCARA_SQUARES, 2, Some([0.0, 130.0, 0.5]));
+    closed_loop(
+        &believed,
+        &actual,
+        || Ok(text.as_bytes()),
+        "scara-circles",
+        &ReplayOptions::default(),
+        11,
+    )
+}
+
+/// Run a closed-loop scenario and write its report into `out_dir`; returns the report.
+pub fn write_closed_loop_report(
+    out_dir: &std::path::Path,
+    run: &ClosedLoop,
+    believed_name: &str,
+    actual_name: &str,
+    gcode_name: &str,
+) -> Result<crate::report::Report, SimulationError> {
+    let report = crate::report::Report {
+        believed_config: believed_name.to_string(),
+        actual_config: actual_name.to_string(),
+        gcode: gcode_name.to_string(),
+        before: crate::report::RunReport::new(&run.before),
+        correction: Some(run.correction.clone()),
+        after: Some(crate::report::RunReport::new(&run.after)),
+    };
+    crate::report::write_report(out_dir, &report, &run.before, Some(&run.after))?;
+    Ok(report)
+}
+
+/// The polar demo written to `out_dir` (1 mm sideways arm offset, generated circles): its report.
+pub fn polar_lateral_offset_demo(
+    out_dir: &std::path::Path,
+) -> Result<crate::report::Report, SimulationError> {
+    let run = polar_lateral_offset_loop(None)?;
+    write_closed_loop_report(
+        out_dir,
+        &run,
+        "polar (Klipper example)",
+        "polar, arm 1 mm sideways",
+        "generated circles",
+    )
+}
+
+/// The SCARA demo written to `out_dir` (ECR 3.2 and +0.5 mm proximal arm built, ECR 3 configured).
+pub fn scara_coupling_demo(
+    out_dir: &std::path::Path,
+) -> Result<crate::report::Report, SimulationError> {
+    let run = scara_coupling_loop()?;
+    write_closed_loop_report(
+        out_dir,
+        &run,
+        "FEKT-SCARA (ECR 3, 100/100 mm)",
+        "ECR 3.2, L1 100.5 mm",
+        "generated circles",
+    )
 }

@@ -32,7 +32,7 @@ pub use filter::StepFilter;
 pub use generator::{ExtruderSpec, StepGenerator};
 pub use motor::{MotorModel, MotorSpec, MotorStepper, REVERSAL_MARGIN, StepGenConfig};
 pub use moves_csv::{parse_row, read_moves_csv};
-pub use pipeline::StepPipeline;
+pub use pipeline::{ChunkSender, StepPipeline, run_in_parallel};
 pub use sink::{CountSink, Step, StepSink, Tee};
 pub use stats::{MotorStats, StepStats};
 pub use writer::{StepFileWriter, read_step_file};

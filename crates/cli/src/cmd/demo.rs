@@ -1,7 +1,7 @@
 //! `jointspace demo`: the whole pipeline on the bundled example machines and jointspace's own test prints,
 //! with a report and pictures in the output folder.
 
-use crate::cmd::{run, workspace};
+use crate::cmd::{calibrate, run, workspace};
 use crate::output::write_atomically;
 use crate::testprint::TestPrint;
 use std::fmt::Write as _;
@@ -15,12 +15,13 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// A bundled machine: its printer.cfg and where its test print goes.
+/// A bundled machine: its printer.cfg, where its test print goes, and what to convert it for.
 struct Example {
     name: &'static str,
     config: &'static str,
     print_centre: [f64; 2],
     print_size: f64,
+    convert_to: Option<convert::Target>,
 }
 
 const EXAMPLES: [Example; 3] = [
@@ -29,18 +30,21 @@ const EXAMPLES: [Example; 3] = [
         config: include_str!("../../../../examples/machines/polar.cfg"),
         print_centre: [0.0, 0.0],
         print_size: 40.0,
+        convert_to: Some(convert::Target::Cylindrical),
     },
     Example {
         name: "scara",
         config: include_str!("../../../../examples/machines/scara.cfg"),
         print_centre: [0.0, 130.0],
         print_size: 25.0,
+        convert_to: Some(convert::Target::Joints),
     },
     Example {
         name: "cartesian",
         config: include_str!("../../../../examples/machines/cartesian.cfg"),
         print_centre: [110.0, 110.0],
         print_size: 40.0,
+        convert_to: None,
     },
 ];
 
@@ -50,6 +54,10 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     let mut report = String::from("jointspace demo: bundled machines and test prints\n\n");
     for example in &EXAMPLES {
         let section = demo_machine(example, out)?;
+        print!("{section}");
+        report += &section;
+    }
+    for section in [demo_calibration(out)?, demo_simulation(out)?] {
         print!("{section}");
         report += &section;
     }
@@ -86,6 +94,85 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     section += &run::render(&summary);
     let figures = workspace::map_and_draw(&machine.params, 2.0, &dir, "workspace")?;
     section += &workspace::render(&figures);
+    if let Some(target) = example.convert_to {
+        section += &demo_conversion(&machine, &gcode, &print_path, &dir, target)?;
+    }
     let _ = writeln!(section);
+    Ok(section)
+}
+
+/// Convert the test print for firmware without the machine's kinematics, and verify the result.
+fn demo_conversion(
+    machine: &config::MachineConfig,
+    gcode: &str,
+    print_path: &Path,
+    dir: &Path,
+    target: convert::Target,
+) -> miette::Result<String> {
+    let kin: std::sync::Arc<dyn kinematics::Kinematics> =
+        std::sync::Arc::from(kinematics::build(&machine.params).map_err(|e| miette::miette!("{e}"))?);
+    let map = convert::AxisMap::motors(kin, target).map_err(|e| miette::miette!("{e}"))?;
+    let options = convert::ConvertOptions { target, ..Default::default() };
+    let name = print_path.display().to_string();
+    let mut converter =
+        convert::Converter::new(map.clone(), options.clone(), Vec::new()).map_err(|e| miette::miette!("{e}"))?;
+    convert::convert_gcode(gcode.as_bytes(), &name, &mut converter).map_err(|e| miette::miette!("{e}"))?;
+    let (written, stats) = converter.finish().map_err(|e| miette::miette!("{e}"))?;
+    let written = String::from_utf8(written).map_err(|e| miette::miette!("{e}"))?;
+    let out_path = dir.join("test-print-converted.gcode");
+    write_atomically(&out_path, |w| Ok(w.write_all(written.as_bytes())?)).map_err(super::plain)?;
+    let commands = convert::read_commands(gcode.as_bytes(), &name).map_err(|e| miette::miette!("{e}"))?;
+    let report = convert::verify(&map, &options, &commands, &written).map_err(|e| miette::miette!("{e}"))?;
+    Ok(format!(
+        "conversion for firmware without {} kinematics ({}): {} moves → {} segments\n  {}\n",
+        machine.kinematics.name(),
+        out_path.display(),
+        stats.moves,
+        stats.segments,
+        super::convert::render_verify(&report)
+    ))
+}
+
+/// A simulated Hall-sensor scan of a polar bed with a mis-centred arm: the fitted centre against the truth.
+fn demo_calibration(out: &Path) -> miette::Result<String> {
+    let args = calibrate::CentreArgs {
+        simulate: true,
+        scan: None,
+        magnets: 16,
+        offset: Some("0.8,-0.45".into()),
+        noise: 0.15,
+        seed: 7,
+        out: out.join("calibration/centre.json"),
+        plot: Some(out.join("calibration/magnet-map.png")),
+    };
+    std::fs::create_dir_all(out.join("calibration")).map_err(|e| miette::miette!("{e}"))?;
+    let (result, truth) = calibrate::simulate_scan(&args, &calibrate::scan_params(&args))?;
+    result.write_json(&args.out).map_err(|e| miette::miette!("{e}"))?;
+    if let Some(png) = &args.plot {
+        calibrate::draw_magnet_map(&result, png)?;
+    }
+    Ok(format!(
+        "== centre calibration (simulated KY-024 scan of 16 magnets; {})\n{}\n",
+        out.join("calibration").display(),
+        calibrate::render_centre(&result, truth)
+    ))
+}
+
+/// The virtual printer: what an assembly error does to a print, and the print after calibration and correction.
+fn demo_simulation(out: &Path) -> miette::Result<String> {
+    let mut section = String::from("== simulation: assembly errors, before and after calibration\n");
+    let polar_dir = out.join("simulation-polar");
+    let polar = sim::scenario::polar_lateral_offset_demo(&polar_dir).map_err(|e| miette::miette!("{e}"))?;
+    section += &format!("-- polar printer whose arm passes 1 mm beside the bed centre ({})\n", polar_dir.display());
+    section += &polar.text();
+    let scara_dir = out.join("simulation-scara");
+    let scara = sim::scenario::scara_coupling_demo(&scara_dir).map_err(|e| miette::miette!("{e}"))?;
+    section += &format!("-- SCARA built with ECR 3.2 and a 0.5 mm longer arm, configured as ECR 3 ({})\n", scara_dir.display());
+    section += &scara.text();
+    section += &format!(
+        "before/after pictures: {} and {}\n\n",
+        polar_dir.join("overlay.png").display(),
+        polar_dir.join("overlay-after.png").display()
+    );
     Ok(section)
 }

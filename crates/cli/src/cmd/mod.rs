@@ -1,7 +1,10 @@
 //! One module per subcommand.
 
+pub mod calibrate;
+pub mod convert;
 pub mod demo;
 pub mod run;
+pub mod simulate;
 pub mod stats;
 pub mod workspace;
 

@@ -6,7 +6,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use stepgen::{ExtruderSpec, MotorStats, StepFileWriter, StepGenConfig, StepPipeline, StepSink, StepStats};
+use stepgen::{ExtruderSpec, MotorStats, StepFileWriter, StepGenConfig, StepSink, StepStats};
 
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
@@ -212,14 +212,19 @@ pub fn execute(
         sinks.push(MotorSink { stats: StepStats::new(options.clock_hz), file });
     }
     let config = StepGenConfig { clock_hz: options.clock_hz, ..StepGenConfig::default() };
-    let pipeline = StepPipeline::new(setup.kinematics.as_ref(), extruder, config, sinks);
     let csv = match &options.moves {
         Some(path) => Some(CsvFile::create(path)?),
         None => None,
     };
-    let (((pipeline, counter), csv), summary) =
-        plan_gcode(&setup, input, name, ((pipeline, MoveCounter::default()), csv)).map_err(ExecuteError::Pipeline)?;
-    let (sinks, filtered) = pipeline.finish().map_err(|e| miette::miette!("step generation failed: {e}"))?;
+    // Planning on this thread, stepping on another: they overlap chunk by chunk.
+    let kinematics = setup.kinematics.as_ref();
+    let (planned, sinks, filtered) = stepgen::run_in_parallel(kinematics, extruder, config, sinks, |sender| {
+        // The sender is dropped here, which tells the stepping thread that planning is over.
+        plan_gcode(&setup, input, name, ((sender, MoveCounter::default()), csv))
+            .map(|(((_sender, counter), csv), summary)| (counter, csv, summary))
+    })
+    .map_err(|e| miette::miette!("step generation failed: {e}"))?;
+    let (counter, csv, summary) = planned.map_err(ExecuteError::Pipeline)?;
     if let Some(csv) = csv {
         csv.finish()?;
     }

@@ -4,7 +4,8 @@
 //! infinity was printed or written, and that a failed run left no file behind.
 //!
 //! `expect.txt` holds `key: value` lines (`#` starts a comment):
-//! - `command`: `run` (default; with `--steps out/steps --moves out/moves.csv`), `check` or `stats`;
+//! - `command`: `run` (default; with `--steps out/steps --moves out/moves.csv`), `check`, `stats` or
+//!   `convert` (with `-o out/converted.gcode`);
 //! - `exit`: the expected exit code (`1` for every error; `0` for the documented cases that only warn);
 //! - `machine`: `cartesian`/`polar`/`scara` (an example machine) or a file name in the case folder; without
 //!   it, the case's `printer.cfg` if it has one, else the example Cartesian machine;
@@ -34,17 +35,27 @@ struct Expect {
 }
 
 fn parse_expect(text: &str) -> Result<Expect, String> {
-    let mut expect = Expect { command: "run".into(), exit: 1, ..Expect::default() };
+    let mut expect = Expect {
+        command: "run".into(),
+        exit: 1,
+        ..Expect::default()
+    };
     for (number, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let (key, value) = line.split_once(':').ok_or(format!("line {}: expected `key: value`", number + 1))?;
+        let (key, value) = line
+            .split_once(':')
+            .ok_or(format!("line {}: expected `key: value`", number + 1))?;
         let value = value.trim().to_string();
         match key.trim() {
             "command" => expect.command = value,
-            "exit" => expect.exit = value.parse().map_err(|_| format!("line {}: exit must be a number", number + 1))?,
+            "exit" => {
+                expect.exit = value
+                    .parse()
+                    .map_err(|_| format!("line {}: exit must be a number", number + 1))?
+            }
             "machine" => expect.machine = Some(value),
             "file" => expect.file = Some(value),
             "stdin" => expect.stdin = value == "yes",
@@ -86,7 +97,10 @@ fn generate(kind: &str, dir: &Path) -> Result<(), String> {
 
 fn copy_case(from: &Path, to: &Path) -> Result<(), String> {
     std::fs::create_dir_all(to).map_err(|e| e.to_string())?;
-    for entry in std::fs::read_dir(from).map_err(|e| e.to_string())?.flatten() {
+    for entry in std::fs::read_dir(from)
+        .map_err(|e| e.to_string())?
+        .flatten()
+    {
         std::fs::copy(entry.path(), to.join(entry.file_name())).map_err(|e| e.to_string())?;
     }
     Ok(())
@@ -98,7 +112,8 @@ fn listing(dir: &Path) -> BTreeSet<PathBuf> {
 
 /// Runs one case; `Err` describes every way it failed.
 fn run_case(case: &Path) -> Result<(), String> {
-    let text = std::fs::read_to_string(case.join("expect.txt")).map_err(|e| format!("expect.txt: {e}"))?;
+    let text =
+        std::fs::read_to_string(case.join("expect.txt")).map_err(|e| format!("expect.txt: {e}"))?;
     let expect = parse_expect(&text)?;
     let scratch = tempfile::tempdir().map_err(|e| e.to_string())?;
     let work = scratch.path().join("work");
@@ -116,25 +131,43 @@ fn run_case(case: &Path) -> Result<(), String> {
         None if work.join("printer.cfg").exists() => PathBuf::from("printer.cfg"),
         None => example_machine("cartesian"),
     };
-    let input = if expect.stdin { "-".to_string() } else { expect.file.clone().unwrap_or("input.gcode".into()) };
+    let input = if expect.stdin {
+        "-".to_string()
+    } else {
+        expect.file.clone().unwrap_or("input.gcode".into())
+    };
     let mut command = Command::new(binary());
     command.current_dir(&work);
     match expect.command.as_str() {
         "run" => {
             command.arg("run").arg("-c").arg(&config).arg(&input);
-            command.arg("--steps").arg(out.join("steps")).arg("--moves").arg(out.join("moves.csv"));
+            command
+                .arg("--steps")
+                .arg(out.join("steps"))
+                .arg("--moves")
+                .arg(out.join("moves.csv"));
         }
         "check" => {
             command.arg("check").arg("-c").arg(&config).arg(&input);
+        }
+        "convert" => {
+            command.arg("convert").arg("-c").arg(&config).arg(&input);
+            command.arg("-o").arg(out.join("converted.gcode"));
         }
         "stats" => {
             command.arg("stats").arg(&input);
         }
         other => return Err(format!("unknown command `{other}`")),
     }
-    command.stdin(if expect.stdin { Stdio::piped() } else { Stdio::null() });
+    command.stdin(if expect.stdin {
+        Stdio::piped()
+    } else {
+        Stdio::null()
+    });
     command.stdout(Stdio::piped()).stderr(Stdio::piped());
-    let mut child = command.spawn().map_err(|e| format!("cannot start the binary: {e}"))?;
+    let mut child = command
+        .spawn()
+        .map_err(|e| format!("cannot start the binary: {e}"))?;
     if expect.stdin {
         let data = std::fs::read(work.join("input.gcode")).map_err(|e| e.to_string())?;
         if let Some(mut stdin) = child.stdin.take() {
@@ -166,7 +199,10 @@ fn run_case(case: &Path) -> Result<(), String> {
         .filter_map(|p| std::fs::read(p).ok())
         .flat_map(|bytes| non_finite_words(&String::from_utf8_lossy(&bytes)))
         .collect();
-    let printed: Vec<String> = non_finite_words(&all).into_iter().filter(|w| !input_words.contains(w)).collect();
+    let printed: Vec<String> = non_finite_words(&all)
+        .into_iter()
+        .filter(|w| !input_words.contains(w))
+        .collect();
     if !printed.is_empty() {
         problems.push(format!("non-finite numbers printed: {printed:?}"));
     }
@@ -174,9 +210,10 @@ fn run_case(case: &Path) -> Result<(), String> {
     if expect.exit != 0 && !left.is_empty() {
         problems.push(format!("files left behind by a failed run: {left:?}"));
     }
-    if let Ok(csv) = std::fs::read_to_string(out.join("moves.csv")) {
-        if !non_finite_words(&csv).is_empty() {
-            problems.push("moves.csv holds non-finite numbers".into());
+    for file in &left {
+        let text = std::fs::read(file).map(|b| String::from_utf8_lossy(&b).into_owned());
+        if text.is_ok_and(|t| !non_finite_words(&t).is_empty()) {
+            problems.push(format!("{} holds non-finite numbers", file.display()));
         }
     }
     let stray: Vec<_> = listing(&work).difference(&before).cloned().collect();
@@ -186,12 +223,19 @@ fn run_case(case: &Path) -> Result<(), String> {
     if problems.is_empty() {
         Ok(())
     } else {
-        Err(format!("{}\n  --- output ---\n{}", problems.join("\n  "), indent(&all)))
+        Err(format!(
+            "{}\n  --- output ---\n{}",
+            problems.join("\n  "),
+            indent(&all)
+        ))
     }
 }
 
 fn indent(text: &str) -> String {
-    text.lines().take(30).map(|l| format!("    {l}\n")).collect()
+    text.lines()
+        .take(30)
+        .map(|l| format!("    {l}\n"))
+        .collect()
 }
 
 #[test]
@@ -203,20 +247,34 @@ fn every_catalogue_case_fails_cleanly_with_its_place() {
         .filter(|p| p.join("expect.txt").exists())
         .collect();
     cases.sort();
-    assert!(cases.len() >= 60, "the catalogue holds {} cases; it must hold at least 60", cases.len());
+    assert!(
+        cases.len() >= 60,
+        "the catalogue holds {} cases; it must hold at least 60",
+        cases.len()
+    );
     let failures: Vec<String> = cases
         .iter()
         .filter_map(|case| {
-            let name = case.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            let name = case
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
             run_case(case).err().map(|e| format!("{name}: {e}"))
         })
         .collect();
-    assert!(failures.is_empty(), "{} of {} cases failed:\n{}", failures.len(), cases.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        cases.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
 fn expect_files_parse() {
-    let expect = parse_expect("# why\ncommand: check\nexit: 0\nphrase: a: b\nphrase: c\n").expect("valid");
+    let expect =
+        parse_expect("# why\ncommand: check\nexit: 0\nphrase: a: b\nphrase: c\n").expect("valid");
     assert_eq!(expect.command, "check");
     assert_eq!(expect.exit, 0);
     assert_eq!(expect.phrases, vec!["a: b".to_string(), "c".to_string()]);

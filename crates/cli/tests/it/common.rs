@@ -14,7 +14,9 @@ pub fn workspace_root() -> PathBuf {
 
 /// An example machine's printer.cfg (`cartesian`, `polar`, `scara`).
 pub fn example_machine(name: &str) -> PathBuf {
-    workspace_root().join("examples/machines").join(format!("{name}.cfg"))
+    workspace_root()
+        .join("examples/machines")
+        .join(format!("{name}.cfg"))
 }
 
 /// `../shared` beside the workspace, or `None` with a printed reason.
@@ -57,7 +59,10 @@ pub fn files_under(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn non_finite_words_finds_numbers_not_letters_inside_words() {
-    assert_eq!(non_finite_words("move to (NaN, 1.0) then -inf"), vec!["nan", "inf"]);
+    assert_eq!(
+        non_finite_words("move to (NaN, 1.0) then -inf"),
+        vec!["nan", "inf"]
+    );
     assert!(non_finite_words("G1 XNaN information infinite").is_empty());
 }
 
@@ -76,9 +81,16 @@ impl CircleStream {
         let mut block = String::new();
         for i in 1..=chords {
             let angle = std::f64::consts::TAU * f64::from(i) / f64::from(chords);
-            block += &format!("G1 X{:.3} Y{:.3} E0.004\n", 110.0 + 2.0 * angle.cos(), 110.0 + 2.0 * angle.sin());
+            block += &format!(
+                "G1 X{:.3} Y{:.3} E0.004\n",
+                110.0 + 2.0 * angle.cos(),
+                110.0 + 2.0 * angle.sin()
+            );
         }
-        CircleStream { header, block: block.into_bytes() }
+        CircleStream {
+            header,
+            block: block.into_bytes(),
+        }
     }
 
     /// Writes at least `bytes` bytes of the print into `out` (whole lines); stops quietly when the reader

@@ -34,7 +34,10 @@ fn wait_for_output(dir: &Path, limit: Duration) -> bool {
 }
 
 fn send_sigint(pid: u32) {
-    let status = Command::new("kill").args(["-INT", &pid.to_string()]).status().expect("run kill");
+    let status = Command::new("kill")
+        .args(["-INT", &pid.to_string()])
+        .status()
+        .expect("run kill");
     assert!(status.success(), "kill -INT {pid} failed");
 }
 
@@ -56,7 +59,11 @@ fn wait_or_kill(child: &mut Child, limit: Duration) -> std::process::ExitStatus 
 
 fn check_interrupted(args: &[&std::ffi::OsStr], out: &Path) {
     let (mut child, writer) = start_streaming(args);
-    assert!(wait_for_output(out, Duration::from_secs(20)), "the run never started writing into {}", out.display());
+    assert!(
+        wait_for_output(out, Duration::from_secs(20)),
+        "the run never started writing into {}",
+        out.display()
+    );
     // Let it write for a while, so buffers and temporary files are mid-way.
     std::thread::sleep(Duration::from_millis(300));
     send_sigint(child.id());
@@ -67,9 +74,15 @@ fn check_interrupted(args: &[&std::ffi::OsStr], out: &Path) {
         let _ = std::io::Read::read_to_string(&mut pipe, &mut stderr);
     }
     assert!(!status.success(), "an interrupted run exited successfully");
-    assert!(!stderr.contains("panicked"), "the interrupted run panicked:\n{stderr}");
+    assert!(
+        !stderr.contains("panicked"),
+        "the interrupted run panicked:\n{stderr}"
+    );
     let left = files_under(out);
-    assert!(left.is_empty(), "an interrupted run left files behind ({status}): {left:?}");
+    assert!(
+        left.is_empty(),
+        "an interrupted run left files behind ({status}): {left:?}"
+    );
 }
 
 #[test]

@@ -4,5 +4,7 @@
 mod catalogue;
 mod common;
 mod determinism;
+mod fuzz_regressions;
 mod interrupt;
 mod limits;
+mod output;

@@ -22,32 +22,38 @@ fn polar_config() -> String {
     )
 }
 
-/// Plan one straight pass at `offset` mm from the centre at `speed` mm/s; the planned moves and the bed's steps.
-fn pass(offset: f64, speed: f64) -> (Vec<TrapezoidMove>, Vec<Step>) {
-    let machine = config::MachineConfig::from_str(&polar_config(), "polar.cfg").expect("config loads");
+/// Plan `gcode` on the machine `config` and generate every motor's steps; the toolhead moves and the steps.
+fn plan_and_step(config: &str, gcode: &str) -> (Vec<TrapezoidMove>, Vec<Vec<Step>>) {
+    let machine = config::MachineConfig::from_str(config, "printer.cfg").expect("config loads");
     let setup = MachineSetup::from_config(&machine).expect("machine builds");
-    let gcode = format!(
-        "SET_KINEMATIC_POSITION X=100 Y={offset} Z=1\nG1 X-100 Y{offset} F{}\n",
-        speed * 60.0
-    );
     let mut moves = Vec::new();
     let sink = |q: Queue, mv: &TrapezoidMove| {
         if q == Queue::Toolhead {
             moves.push(*mv);
         }
     };
-    let _ = plan_gcode(&setup, gcode.as_bytes(), "pass.gcode", sink).expect("plans");
+    let _ = plan_gcode(&setup, gcode.as_bytes(), "test.gcode", sink).expect("plans");
     let pieces: Vec<Piece> = moves.iter().flat_map(|m| m.pieces()).collect();
     let start = pieces.first().expect("moves").start_pos;
     let config = StepGenConfig { clock_hz: CLOCK_HZ, ..StepGenConfig::default() };
     let mut generator = StepGenerator::new(setup.kinematics.as_ref(), start, None, config).expect("starts");
-    let mut sinks: Vec<Vec<Step>> = vec![Vec::new(); 3];
+    let mut sinks: Vec<Vec<Step>> = vec![Vec::new(); setup.kinematics.motors().len()];
     generator.run_chunk(&pieces, &[], &mut sinks).expect("steps");
     generator.finish(&mut sinks).expect("finishes");
-    (moves, sinks.swap_remove(0))
+    (moves, sinks)
 }
 
-/// Peak angular speed and acceleration of the bed from its step times: speed over windows of `w` steps, and
+/// Plan one straight pass at `offset` mm from the centre at `speed` mm/s; the planned moves and the bed's steps.
+fn pass(offset: f64, speed: f64) -> (Vec<TrapezoidMove>, Vec<Step>) {
+    let gcode = format!(
+        "SET_KINEMATIC_POSITION X=100 Y={offset} Z=1\nG1 X-100 Y{offset} F{}\n",
+        speed * 60.0
+    );
+    let (moves, mut steps) = plan_and_step(&polar_config(), &gcode);
+    (moves, steps.swap_remove(0))
+}
+
+/// Peak speed and acceleration of a motor from its step times: speed over windows of `w` steps, and
 /// acceleration from the speeds of consecutive windows (so clock quantisation stays far below 1%).
 fn peak_rates(steps: &[Step], step_dist: f64) -> (f64, f64) {
     let t: Vec<f64> = steps.iter().map(|s| s.clock as f64 / CLOCK_HZ).collect();
@@ -130,4 +136,44 @@ fn without_limits_a_pass_is_one_move() {
     .expect("config loads");
     let setup = MachineSetup::from_config(&machine).expect("machine builds");
     assert!(setup.planner.kinematic_limits.is_empty());
+}
+
+#[test]
+fn scara_joint_speed_and_acceleration_stay_within_limits_near_full_reach() {
+    let (max_w, max_a) = (2.0, 100.0);
+    let config = format!(
+        "[stepper_a]\nstep_pin: PF0\ndir_pin: PF1\nmicrosteps: 16\ngear_ratio: 60:20\nendstop_pin: ^PE5\n\
+         position_endstop: 45\nposition_min: -200\nposition_max: 200\nhoming_positive_dir: true\n\
+         [stepper_b]\nstep_pin: PF6\ndir_pin: PF7\nmicrosteps: 16\ngear_ratio: 60:20\nendstop_pin: ^PJ1\n\
+         position_endstop: 105\nposition_min: -200\nposition_max: 200\nhoming_positive_dir: true\n\
+         [stepper_z]\nstep_pin: PL3\ndir_pin: PL1\nmicrosteps: 16\nrotation_distance: 8\nendstop_pin: ^PD3\n\
+         position_endstop: 0.5\nposition_max: 200\n\
+         [printer]\nkinematics: scara\nlink1_length: 100\nlink2_length: 100\necr: 3\nmax_velocity: 300\n\
+         max_accel: 3000\nmax_joint_velocity: {max_w}\nmax_joint_accel: {max_a}\n"
+    );
+    // Along y = 150 the radius runs 192 → 150 → 192 mm: the arm is nearly straight at both ends.
+    let gcode = "SET_KINEMATIC_POSITION X=-120 Y=150 Z=1\nG1 X120 Y150 F18000\n";
+    let (moves, steps) = plan_and_step(&config, gcode);
+    let step_dist = std::f64::consts::TAU / 9600.0;
+    for (name, motor_steps) in ["stepper_a", "stepper_b"].iter().zip(&steps) {
+        let (w, a) = peak_rates(motor_steps, step_dist);
+        assert!(w <= max_w * 1.01, "{name}: {w} rad/s");
+        assert!(a <= max_a * 1.01, "{name}: {a} rad/s²");
+        eprintln!("scara {name}: peak {w:.3} rad/s, {a:.1} rad/s², {} spans", moves.len());
+    }
+}
+
+#[test]
+fn step_rate_limit_holds_on_every_motor() {
+    let limit = 20000.0;
+    let config = polar_config()
+        .replace("max_angular_velocity: 5\nmax_angular_accel: 200\n", &format!("max_step_rate: {limit}\n"));
+    let gcode = "SET_KINEMATIC_POSITION X=100 Y=0.5 Z=1\nG1 X-100 Y0.5 F18000\nG1 X-100 Y-80 Z2 F18000\n";
+    let (_, steps) = plan_and_step(&config, gcode);
+    for motor_steps in &steps {
+        let t: Vec<f64> = motor_steps.iter().map(|s| s.clock as f64 / CLOCK_HZ).collect();
+        let w = 16;
+        let peak = t.windows(w + 1).map(|x| w as f64 / (x[w] - x[0])).fold(0.0, f64::max);
+        assert!(peak <= limit * 1.01, "{peak} steps/s");
+    }
 }

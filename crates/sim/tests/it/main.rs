@@ -1,3 +1,8 @@
-//! Integration tests of the virtual printer.
+//! Integration tests of the virtual printer: the acceptance cases (polar sideways arm offset on the
+//! corpus circle, SCARA with a wrong ECR and arm length, no assembly error), the motor model against closed
+//! forms, and the report files.
 
-mod quick;
+mod acceptance;
+mod common;
+mod motor_model;
+mod report_files;

@@ -1,0 +1,271 @@
+//! `jointspace calibrate`: the polar bed's rotation centre from a Hall-sensor magnet scan (simulated or logged),
+//! and SCARA arm geometry from measured nozzle positions.
+
+use crate::output::write_atomically;
+use calibrate::scan::{CentreResult, ScanParams};
+use calibrate::scara::{self, Measurement, ScaraGeometry};
+use plot::{Figure, Layer, Rgb};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    /// Find where the polar bed really turns: scan the magnets on the bed rim with the Hall sensor on the arm.
+    Centre(CentreArgs),
+    /// Identify SCARA arm lengths, shoulder position, joint zeros and elbow coupling from measured points.
+    Scara(ScaraArgs),
+    /// Write the G-code of a SCARA calibration pattern (crosses at well-chosen motor poses) to print and measure.
+    ScaraPattern(PatternArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CentreArgs {
+    /// Run the scan on a simulated printer (KY-024 sensor, Ø3×5 mm magnets, realistic noise).
+    #[arg(long, conflicts_with = "scan")]
+    pub simulate: bool,
+    /// Magnet detections logged by a real machine: CSV `magnet,side,arm_mm,bed_deg` (side `near` or `far`).
+    #[arg(long, value_name = "CSV")]
+    pub scan: Option<PathBuf>,
+    /// Magnets on the bed rim (simulation).
+    #[arg(long, default_value_t = 16)]
+    pub magnets: usize,
+    /// True arm offsets `dx,dy` of the simulated machine (mm); random up to 2 mm when not given.
+    #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+    pub offset: Option<String>,
+    /// Sensor noise (mT, 1σ) of the simulation.
+    #[arg(long, default_value_t = 0.15)]
+    pub noise: f64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Result file (JSON) for `convert --calibration` and `arm_zero_offset`/`arm_lateral_offset` in printer.cfg.
+    #[arg(short = 'o', long = "out", default_value = "centre.json")]
+    pub out: PathBuf,
+    /// Picture of the magnet map with the fitted ring and residuals (PNG; an SVG is written beside it).
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ScaraArgs {
+    /// Measurements: CSV `motor_a_deg,motor_b_deg,x_mm,y_mm` (header line and `#` comments allowed).
+    #[arg(long, value_name = "CSV")]
+    pub measurements: PathBuf,
+    /// Configuration whose geometry starts the fit (default: FEKT-SCARA 100/100 mm, ECR 3).
+    #[arg(short = 'c', long = "config")]
+    pub config: Option<PathBuf>,
+    /// Result file (JSON).
+    #[arg(short = 'o', long = "out", default_value = "scara.json")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct PatternArgs {
+    /// Configuration of the arm (default: FEKT-SCARA 100/100 mm, ECR 3).
+    #[arg(short = 'c', long = "config")]
+    pub config: Option<PathBuf>,
+    /// Number of crosses.
+    #[arg(long, default_value_t = 20)]
+    pub poses: usize,
+    /// Output G-code.
+    #[arg(short = 'o', long = "out", default_value = "scara-pattern.gcode")]
+    pub out: PathBuf,
+}
+
+pub fn run(command: Command) -> miette::Result<ExitCode> {
+    match command {
+        Command::Centre(args) => centre(args),
+        Command::Scara(args) => scara_fit(args),
+        Command::ScaraPattern(args) => pattern(args),
+    }
+}
+
+/// Scan settings for the arguments.
+pub fn scan_params(args: &CentreArgs) -> ScanParams {
+    ScanParams { magnet_count: args.magnets, ..ScanParams::default() }
+}
+
+fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
+    let params = scan_params(&args);
+    let (result, truth) = if let Some(path) = &args.scan {
+        let text = std::fs::read_to_string(path).map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
+        let slots = calibrate::scan::parse_detections(&text, &path.display().to_string())
+            .map_err(|e| miette::miette!("{e}"))?;
+        let result = calibrate::scan::centre_from_detections(&params, slots.near, slots.far)
+            .map_err(|e| miette::miette!("{e}"))?;
+        (result, None)
+    } else if args.simulate {
+        simulate_scan(&args, &params)?
+    } else {
+        return Err(miette::miette!("give --simulate or --scan FILE"));
+    };
+    result.write_json(&args.out).map_err(|e| miette::miette!("{e}"))?;
+    print!("{}", render_centre(&result, truth));
+    println!("  result written to {}", args.out.display());
+    if let Some(png) = &args.plot {
+        draw_magnet_map(&result, png)?;
+        println!("  magnet map drawn in {}", png.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Scan a simulated bed; the result and the true offsets.
+pub fn simulate_scan(args: &CentreArgs, params: &ScanParams) -> miette::Result<(CentreResult, Option<[f64; 2]>)> {
+    let mut bed = sim::hall::HallBedConfig { magnet_count: args.magnets, seed: args.seed, ..Default::default() };
+    bed.sensor.noise = args.noise * 1e-3;
+    bed = match &args.offset {
+        Some(text) => {
+            let [dx, dy] = parse_pair(text, "--offset")?;
+            sim::hall::HallBedConfig { arm_zero_offset: dx, arm_lateral_offset: dy, ..bed }
+        }
+        None => bed.random_offsets(2.0, args.seed),
+    };
+    let truth = [bed.arm_zero_offset, bed.arm_lateral_offset];
+    let mut scanner = sim::hall::HallScanner::new(bed).map_err(|e| miette::miette!("{e}"))?;
+    let result = calibrate::scan::scan_centre(&mut scanner, params).map_err(|e| miette::miette!("{e}"))?;
+    Ok((result, Some(truth)))
+}
+
+pub fn render_centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
+    let mut out = format!(
+        "rotation centre: arm_zero_offset {:+.4} mm (±{:.4}), arm_lateral_offset {:+.4} mm (±{:.4})\n",
+        r.arm_zero_offset, r.sigma_arm_zero_offset, r.arm_lateral_offset, r.sigma_arm_lateral_offset
+    );
+    out += &format!(
+        "  {} of {} magnets seen, {} pairs used; scan takes {:.0} s on the machine ({} sensor readings)\n",
+        r.detected, r.magnet_count, r.pairs_used, r.scan_time, r.sensor_reads
+    );
+    if let Some([dx, dy]) = truth {
+        let error = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
+        out += &format!("  simulated truth: {dx:+.4}, {dy:+.4} mm; error of the estimate {error:.4} mm\n");
+    }
+    out
+}
+
+pub fn draw_magnet_map(r: &CentreResult, png: &Path) -> miette::Result<()> {
+    let data = r.plot_data();
+    let mut figure = Figure::new("Magnet map: measured magnet centres and the fitted ring");
+    figure.notes.push(format!(
+        "centre offset dx {:+.4} mm, dy {:+.4} mm; residuals drawn ×100",
+        r.arm_zero_offset, r.arm_lateral_offset
+    ));
+    if let Some(ring) = data.ring {
+        figure = figure.with_layer(Layer::Circle { centre: [ring.cx, ring.cy], radius: ring.r, colour: Rgb(120, 120, 120), width: 1.0 });
+    }
+    let segments: Vec<[[f64; 2]; 2]> = data
+        .points
+        .iter()
+        .zip(&data.residual_vectors)
+        .map(|(p, v)| [[p[0] - v[0], p[1] - v[1]], [p[0] - v[0] + 100.0 * v[0], p[1] - v[1] + 100.0 * v[1]]])
+        .collect();
+    for segment in segments {
+        figure = figure.with_layer(Layer::Polyline { points: segment.to_vec(), colour: Rgb(200, 60, 40), width: 2.0 });
+    }
+    figure = figure
+        .with_layer(Layer::Points { points: data.points.clone(), colour: Rgb(30, 90, 200), radius_px: 4.0 })
+        .with_layer(Layer::Points { points: vec![data.rotation_centre], colour: Rgb(0, 0, 0), radius_px: 3.0 });
+    figure.write_png(png).map_err(|e| miette::miette!("{e}"))?;
+    figure.write_svg(&png.with_extension("svg")).map_err(|e| miette::miette!("{e}"))?;
+    Ok(())
+}
+
+fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
+    let start = start_geometry(args.config.as_deref())?;
+    let text = std::fs::read_to_string(&args.measurements)
+        .map_err(|e| miette::miette!("cannot read {}: {e}", args.measurements.display()))?;
+    let data: Vec<Measurement> = scara::parse_measurements(&text, &args.measurements.display().to_string())
+        .map_err(|e| miette::miette!("{e}"))?;
+    let fit = scara::identify(&data, &start).map_err(|e| miette::miette!("{e}"))?;
+    let g = &fit.geometry;
+    println!("identified from {} measurements (residual RMS {:.4} mm):", data.len(), fit.rms);
+    let values = [
+        g.link1_length,
+        g.link2_length,
+        g.offset_x,
+        g.offset_y,
+        g.shoulder_zero.to_degrees(),
+        g.elbow_zero.to_degrees(),
+        g.elbow_coupling,
+    ];
+    let sigmas = [
+        fit.sigma[0],
+        fit.sigma[1],
+        fit.sigma[2],
+        fit.sigma[3],
+        fit.sigma[4].to_degrees(),
+        fit.sigma[5].to_degrees(),
+        fit.sigma[6],
+    ];
+    for ((name, v), s) in scara::PARAM_NAMES.iter().zip(values).zip(sigmas) {
+        println!("  {name:<16} {v:>12.5} ± {s:.5}");
+    }
+    println!("  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)", 1.0 / g.elbow_coupling);
+    let id = &fit.identifiability;
+    println!("  condition number of the poses: {:.1}", id.condition_number);
+    for combination in &id.unidentifiable {
+        let terms: Vec<String> = combination.iter().map(|(n, w)| format!("{w:+.2}·{n}")).collect();
+        println!("  not identifiable from these poses: {}", terms.join(" "));
+    }
+    let json = serde_json::json!({
+        "link1_length": g.link1_length, "link2_length": g.link2_length,
+        "offset_x": g.offset_x, "offset_y": g.offset_y,
+        "shoulder_zero_deg": g.shoulder_zero.to_degrees(), "elbow_zero_deg": g.elbow_zero.to_degrees(),
+        "elbow_coupling": g.elbow_coupling, "sigma": fit.sigma.to_vec(), "rms_mm": fit.rms,
+        "condition_number": id.condition_number,
+    });
+    write_atomically(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?)).map_err(super::plain)?;
+    println!("  result written to {}", args.out.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
+    let g = start_geometry(args.config.as_deref())?;
+    let candidates = scara::pose_grid((-150f64.to_radians(), 150f64.to_radians()), (-150f64.to_radians(), 150f64.to_radians()), 25, 25);
+    let reachable: Vec<(f64, f64)> = candidates
+        .into_iter()
+        .filter(|&(a, b)| {
+            let p = g.forward(a, b);
+            let r = (p[0] - g.offset_x).hypot(p[1] - g.offset_y);
+            r > 70.0 && p[1] > g.offset_y + 20.0
+        })
+        .collect();
+    let poses = scara::suggest_poses(&g, &[], &reachable, args.poses);
+    let text = scara::calibration_pattern_gcode(&g, &poses, &scara::PatternOptions::default());
+    write_atomically(&args.out, |w| Ok(w.write_all(text.as_bytes())?)).map_err(super::plain)?;
+    let id = scara::analyse_poses(&g, &poses);
+    println!(
+        "{} crosses written to {} (condition number of the poses {:.1}); print it, measure each cross centre and \
+         run `jointspace calibrate scara --measurements points.csv`",
+        poses.len(),
+        args.out.display(),
+        id.condition_number
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The SCARA geometry of a config, or FEKT-SCARA's nominal one.
+fn start_geometry(config: Option<&Path>) -> miette::Result<ScaraGeometry> {
+    let Some(path) = config else {
+        return Ok(ScaraGeometry::fekt());
+    };
+    let (machine, _) = super::run::load_machine(path)?;
+    match machine.params {
+        kinematics::MachineParams::Scara(p) => Ok(ScaraGeometry {
+            link1_length: p.link1_length,
+            link2_length: p.link2_length,
+            offset_x: p.offset_x,
+            offset_y: p.offset_y,
+            shoulder_zero: p.shoulder_zero,
+            elbow_zero: p.elbow_zero,
+            elbow_coupling: p.elbow_coupling,
+        }),
+        _ => Err(miette::miette!("{}: not a SCARA machine", path.display())),
+    }
+}
+
+fn parse_pair(text: &str, flag: &str) -> miette::Result<[f64; 2]> {
+    let values: Vec<f64> = text.split(',').filter_map(|p| p.trim().parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
+    match values[..] {
+        [a, b] if text.split(',').count() == 2 => Ok([a, b]),
+        _ => Err(miette::miette!("{flag} takes two numbers `a,b`, got `{text}`")),
+    }
+}

@@ -1,0 +1,223 @@
+//! `jointspace convert`: G-code for firmware without these kinematics (radius/angle or joint angles), with a
+//! bounded path error; optionally corrected for a mis-centred polar bed, and verified.
+
+use crate::{diag, input, output};
+use convert::{
+    AngleUnit, AxisMap, CentreCorrection, ConvertOptions, Converter, Extrusion, FeedMode, Segmentation, Target,
+};
+use kinematics::MachineParams;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum To {
+    /// Polar firmware: X = arm radius (mm), Y = bed angle (degrees), Z, E.
+    Cylindrical,
+    /// Raw motor positions (SCARA: motor a, motor b in degrees; polar: bed angle, arm), Z, E.
+    Joints,
+    /// Cartesian XY corrected for the configured/measured centre offsets, for polar firmware that assumes an
+    /// ideal machine.
+    Cartesian,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Fixed {
+    /// Marlin: 200 segments/s, 0.5 mm minimum.
+    Marlin,
+    /// Marlin POLAR: 180 segments/s, 0.5 mm minimum.
+    MarlinPolar,
+    /// RepRapFirmware: 100 segments/s, 0.2 mm minimum.
+    Rrf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Printer configuration (Klipper's printer.cfg format).
+    #[arg(short = 'c', long = "config")]
+    pub config: PathBuf,
+    /// G-code file (`-` for standard input).
+    pub file: PathBuf,
+    /// Output G-code file.
+    #[arg(short = 'o', long = "out")]
+    pub out: PathBuf,
+    /// What the output's axes are.
+    #[arg(long, value_enum, default_value = "cylindrical")]
+    pub to: To,
+    /// Largest distance (mm) between the nozzle and the intended path when the firmware interpolates linearly
+    /// in motor space between the written points.
+    #[arg(long, default_value_t = 0.005)]
+    pub tolerance: f64,
+    /// Segment like a firmware does instead (for comparison).
+    #[arg(long, value_enum)]
+    pub fixed: Option<Fixed>,
+    /// Polar centre correction `dx,dy` (mm): the arm's zero along the arm and the arm's sideways offset.
+    #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+    pub centre_offset: Option<String>,
+    /// Take the centre correction from a `jointspace calibrate centre` result file.
+    #[arg(long, value_name = "FILE", conflicts_with = "centre_offset")]
+    pub calibration: Option<PathBuf>,
+    /// Output axis letters, e.g. `RT` as in the centring thesis (default `XY`).
+    #[arg(long, value_name = "AB")]
+    pub letters: Option<String>,
+    /// Angles in radians instead of degrees.
+    #[arg(long)]
+    pub radians: bool,
+    /// Inverse-time feed (`G93`, F = 1/minutes per segment) instead of motor-space F.
+    #[arg(long)]
+    pub inverse_time: bool,
+    /// Absolute extrusion (`M82`) instead of relative.
+    #[arg(long)]
+    pub absolute_e: bool,
+    /// Replay the output through the forward kinematics and report the deviation, extrusion and time.
+    #[arg(long)]
+    pub verify: bool,
+}
+
+pub fn run(args: Args) -> miette::Result<ExitCode> {
+    let (machine, _) = super::run::load_machine(&args.config)?;
+    let options = options(&args)?;
+    let map = axis_map(&args, &machine.params)?;
+    let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
+    let mut stats = None;
+    output::write_atomically(&args.out, |out| {
+        let mut converter = Converter::new(map.clone(), options.clone(), out)?;
+        convert::convert_gcode(reader, &name, &mut converter)?;
+        let (_, s) = converter.finish()?;
+        stats = Some(s);
+        Ok(())
+    })
+    .map_err(|e| convert_error(&args, e))?;
+    bar.finish_and_clear();
+    if let Some(s) = stats {
+        println!(
+            "{} → {}: {} moves as {} segments ({} centre turns, {} positioning moves)",
+            name,
+            args.out.display(),
+            s.moves,
+            s.segments,
+            s.flips,
+            s.positioning_moves
+        );
+    }
+    if args.verify {
+        let input = std::fs::File::open(&args.file)
+            .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
+        let commands = convert::read_commands(std::io::BufReader::new(input), &name)
+            .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
+        let written = std::fs::read_to_string(&args.out)
+            .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
+        let r = convert::verify(&map, &options, &commands, &written).map_err(|e| miette::miette!("{e}"))?;
+        println!("verification: {}", render_verify(&r));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The verification figures in one line.
+pub fn render_verify(r: &convert::VerifyReport) -> String {
+    format!(
+        "max deviation {:.4} mm at ({:.2}, {:.2}), RMS {:.5} mm over {} segments; filament {:.5} → {:.5} mm; \
+         time {:.1} → {:.1} s ({:.1} s turning at the centre)",
+        r.max_deviation,
+        r.worst_point[0],
+        r.worst_point[1],
+        r.rms_deviation,
+        r.segments,
+        r.extrusion_in,
+        r.extrusion_out,
+        r.time_in,
+        r.time_out,
+        r.flip_time
+    )
+}
+
+fn options(args: &Args) -> miette::Result<ConvertOptions> {
+    if !(args.tolerance > 0.0 && args.tolerance.is_finite()) {
+        return Err(miette::miette!("--tolerance must be a positive number of mm"));
+    }
+    let mut options = ConvertOptions {
+        target: if args.to == To::Joints { Target::Joints } else { Target::Cylindrical },
+        segmentation: match args.fixed {
+            None => Segmentation::Adaptive { tolerance: args.tolerance },
+            Some(Fixed::Marlin) => Segmentation::MARLIN,
+            Some(Fixed::MarlinPolar) => Segmentation::MARLIN_POLAR,
+            Some(Fixed::Rrf) => Segmentation::RRF,
+        },
+        angle_unit: if args.radians { AngleUnit::Radians } else { AngleUnit::Degrees },
+        feed: if args.inverse_time { FeedMode::InverseTime } else { FeedMode::MotorSpace },
+        extrusion: if args.absolute_e { Extrusion::Absolute } else { Extrusion::Relative },
+        ..ConvertOptions::default()
+    };
+    if let Some(letters) = &args.letters {
+        let chars: Vec<char> = letters.chars().collect();
+        match chars[..] {
+            [a, b] if a.is_ascii_alphabetic() && b.is_ascii_alphabetic() && a != b => {
+                options.axis_letters = Some([a.to_ascii_uppercase(), b.to_ascii_uppercase()]);
+            }
+            _ => return Err(miette::miette!("--letters takes two different letters, e.g. RT")),
+        }
+    }
+    Ok(options)
+}
+
+/// The output axes: the configured machine's motors, or a corrected polar machine's.
+fn axis_map(args: &Args, params: &MachineParams) -> miette::Result<AxisMap> {
+    let fail = |e: convert::ConvertError| miette::miette!("{e}");
+    let correction = centre_correction(args)?;
+    match (params, correction, args.to) {
+        (MachineParams::Polar(p), Some(c), To::Cartesian) => c.cartesian_map(p).map_err(fail),
+        (MachineParams::Polar(p), Some(c), to) => {
+            let target = if to == To::Joints { Target::Joints } else { Target::Cylindrical };
+            c.motor_map(p, target).map_err(fail)
+        }
+        (MachineParams::Polar(p), None, To::Cartesian) => {
+            let c = CentreCorrection { arm_zero_offset: p.arm_zero_offset, arm_lateral_offset: p.arm_lateral_offset };
+            c.cartesian_map(p).map_err(fail)
+        }
+        (_, Some(_), _) | (_, None, To::Cartesian) => {
+            Err(miette::miette!("centre correction and --to cartesian need a polar machine"))
+        }
+        (params, None, to) => {
+            let kin: Arc<dyn kinematics::Kinematics> =
+                Arc::from(kinematics::build(params).map_err(|e| miette::miette!("{e}"))?);
+            let target = if to == To::Joints { Target::Joints } else { Target::Cylindrical };
+            AxisMap::motors(kin, target).map_err(fail)
+        }
+    }
+}
+
+fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
+    if let Some(text) = &args.centre_offset {
+        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+        let numbers: Vec<f64> = parts.iter().filter_map(|p| p.parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
+        if parts.len() != 2 || numbers.len() != 2 {
+            return Err(miette::miette!("--centre-offset takes two numbers `dx,dy` in mm, got `{text}`"));
+        }
+        return Ok(Some(CentreCorrection { arm_zero_offset: numbers[0], arm_lateral_offset: numbers[1] }));
+    }
+    if let Some(path) = &args.calibration {
+        let result = calibrate::scan::CentreResult::read_json(path)
+            .map_err(|e| miette::miette!("{}: {e}", path.display()))?;
+        return Ok(Some(CentreCorrection {
+            arm_zero_offset: result.arm_zero_offset,
+            arm_lateral_offset: result.arm_lateral_offset,
+        }));
+    }
+    Ok(None)
+}
+
+/// A conversion error: on a G-code line when it has one.
+fn convert_error(args: &Args, e: anyhow::Error) -> miette::Report {
+    use convert::ConvertError as E;
+    match e.downcast::<E>() {
+        Ok(E::Gcode(e)) => miette::Report::new(diag::gcode_error(&e)),
+        Ok(other @ (E::Unreachable { span, .. } | E::Unsupported { span, .. } | E::NoConvergence { span, .. })) => {
+            // The error's text starts with its own `line l:c:`; the diagnostic names file, line and column.
+            let text = other.to_string();
+            let message = text.split_once(": ").map_or(text.as_str(), |(_, rest)| rest).to_string();
+            miette::Report::new(diag::at_gcode_line(&args.file, span, message, "here".into()))
+        }
+        Ok(other) => miette::miette!("{}: {other}", args.file.display()),
+        Err(e) => super::plain(e),
+    }
+}

@@ -1,0 +1,118 @@
+//! `jointspace simulate`: run a G-code file planned for the believed printer (`-c`) on the printer as built
+//! (`--actual`: same keys plus its assembly errors and a `[sim]` motor model), report how far the deposited
+//! path strays from the intended one (text, JSON, overlay and heat-map pictures), and with `--correct`
+//! calibrate the simulated machine, apply the result to the believed config and simulate again.
+
+use crate::{diag, input};
+use sim::scenario::{Simulation, calibrate_and_correct};
+use sim::{Machine, ReplayOptions, Report, RunReport, SimulationError};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The printer as configured (Klipper's printer.cfg format): what the G-code is planned for.
+    #[arg(short = 'c', long = "config")]
+    pub config: PathBuf,
+    /// The printer as built: the same config with its real geometry (e.g. `arm_lateral_offset`, `ecr`,
+    /// `link1_length`) and an optional `[sim]` section (microstep error, backlash, step scale errors).
+    #[arg(long, value_name = "ACTUAL_CFG")]
+    pub actual: PathBuf,
+    /// G-code file.
+    pub file: PathBuf,
+    /// Report folder (report.txt, report.json, overlay.png/.svg, deviation-map.png).
+    #[arg(short = 'o', long = "out", value_name = "DIR")]
+    pub out: PathBuf,
+    /// Calibrate the simulated machine (polar: Hall centre scan; SCARA: measured pattern + identification),
+    /// apply the result and simulate again: before/after in one report.
+    #[arg(long)]
+    pub correct: bool,
+    /// Print the report as JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Seed of the simulated calibration's random errors (magnet placement, sensor and measurement noise).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+pub fn run(args: Args) -> miette::Result<ExitCode> {
+    if args.correct && args.file == Path::new("-") {
+        return Err(miette::miette!(
+            "--correct reads the G-code twice: give a file, not standard input"
+        ));
+    }
+    let believed = load_config(&args.config)?;
+    let actual_cfg = load_config(&args.actual)?;
+    let actual = Machine::from_config(&actual_cfg).map_err(|e| report_error(&e))?;
+    let options = ReplayOptions::default();
+    let before = simulate_file(&believed, &actual, &args.file, &options)?;
+    let (correction, after) = if args.correct {
+        let (corrected, summary) =
+            calibrate_and_correct(&believed, &actual, args.seed).map_err(|e| report_error(&e))?;
+        let after = simulate_file(&corrected, &actual, &args.file, &options)?;
+        (Some(summary), Some(after))
+    } else {
+        (None, None)
+    };
+    let report = Report {
+        believed_config: args.config.display().to_string(),
+        actual_config: args.actual.display().to_string(),
+        gcode: args.file.display().to_string(),
+        before: RunReport::new(&before),
+        correction,
+        after: after.as_ref().map(RunReport::new),
+    };
+    sim::write_report(&args.out, &report, &before, after.as_ref()).map_err(|e| report_error(&e))?;
+    let text = if args.json {
+        let mut json = serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?;
+        json.push('\n');
+        json
+    } else {
+        format!(
+            "{}report written to {}\n",
+            report.text(),
+            args.out.display()
+        )
+    };
+    print_stdout(&text)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Print to standard output; a closed pipe (`| head`) is not an error, the report files are written.
+fn print_stdout(text: &str) -> miette::Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(miette::miette!("cannot write to standard output: {e}"))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn load_config(path: &Path) -> miette::Result<config::MachineConfig> {
+    config::MachineConfig::load(path).map_err(|e| miette::Report::new(diag::config_error(&e)))
+}
+
+fn simulate_file(
+    believed: &config::MachineConfig,
+    actual: &Machine,
+    path: &Path,
+    options: &ReplayOptions,
+) -> miette::Result<Simulation> {
+    let (reader, name, bar) = input::open_gcode(path).map_err(crate::cmd::plain)?;
+    let result = sim::simulate(believed, actual, reader, &name, options);
+    bar.finish_and_clear();
+    result.map_err(|e| report_error(&e))
+}
+
+/// Diagnostics with the source line where the error has one.
+fn report_error(e: &SimulationError) -> miette::Report {
+    match e {
+        SimulationError::Config(c) => miette::Report::new(diag::config_error(c)),
+        SimulationError::Plan(motion::machine::PipelineError::Gcode(g)) => {
+            miette::Report::new(diag::gcode_error(g))
+        }
+        other => miette::miette!("{other}"),
+    }
+}

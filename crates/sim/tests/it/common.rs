@@ -1,0 +1,43 @@
+//! Shared helpers: locating `../shared`, building scenario machines.
+
+use std::path::PathBuf;
+
+/// The corpus circle print, or `None` (with a message) when `../shared` is absent.
+pub fn corpus_circle() -> Option<Vec<u8>> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/corpus/cura-4.10_circle-centred.gcode");
+    match std::fs::read(&path) {
+        Ok(bytes) => Some(bytes),
+        Err(_) => {
+            println!(
+                "SKIP corpus: {} not found; using a generated circle print",
+                path.display()
+            );
+            None
+        }
+    }
+}
+
+/// Believed and actual config from the polar demo config with `[printer]` keys added to the actual one
+/// and an optional `[sim]` section.
+pub fn polar_pair(
+    printer_keys: &str,
+    sim_section: &str,
+) -> (config::MachineConfig, config::MachineConfig) {
+    let (believed, _) =
+        sim::scenario::scenario_configs(sim::scenario::POLAR_CONFIG, "").expect("configs");
+    let text = format!("{}\n[sim]\n{sim_section}\n", sim::scenario::POLAR_CONFIG)
+        .replace("[printer]\n", &format!("[printer]\n{printer_keys}\n"));
+    let actual = config::MachineConfig::from_str(&text, "actual.cfg").expect("actual config");
+    (believed, actual)
+}
+
+/// A generated polar print of concentric and off-centre circles plus a square.
+pub fn polar_print() -> String {
+    sim::scenario::test_print_gcode(
+        &sim::scenario::POLAR_CIRCLES,
+        &sim::scenario::POLAR_SQUARES,
+        2,
+        None,
+    )
+}

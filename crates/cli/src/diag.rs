@@ -3,7 +3,9 @@
 //! Library errors carry the offending line's text (or the CLI re-reads that one line), so a diagnostic for line
 //! 3 000 000 of a huge file costs nothing and shows the real line number.
 
-use miette::{Diagnostic, LabeledSpan, MietteError, MietteSpanContents, SourceCode, SourceSpan, SpanContents};
+use miette::{
+    Diagnostic, LabeledSpan, MietteError, MietteSpanContents, SourceCode, SourceSpan, SpanContents,
+};
 use std::fmt;
 use std::io::BufRead;
 use std::path::Path;
@@ -66,12 +68,21 @@ impl Diagnostic for SourceDiagnostic {
     fn labels(&self) -> Option<Box<dyn Iterator<Item = LabeledSpan> + '_>> {
         let source = self.source.as_ref()?;
         let offset = self.offset.min(source.text.len());
-        let len = self.len.min(source.text.len() - offset).max(usize::from(offset < source.text.len()));
-        Some(Box::new(std::iter::once(LabeledSpan::new(Some(self.label.clone()), offset, len))))
+        let len = self
+            .len
+            .min(source.text.len() - offset)
+            .max(usize::from(offset < source.text.len()));
+        Some(Box::new(std::iter::once(LabeledSpan::new(
+            Some(self.label.clone()),
+            offset,
+            len,
+        ))))
     }
 
     fn help<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
-        self.help.as_ref().map(|h| Box::new(h) as Box<dyn fmt::Display>)
+        self.help
+            .as_ref()
+            .map(|h| Box::new(h) as Box<dyn fmt::Display>)
     }
 }
 
@@ -89,7 +100,12 @@ pub fn read_line_of(path: &Path, line: u64) -> Option<String> {
     buf.clear();
     reader.read_until(b'\n', &mut buf).ok()?;
     let text = String::from_utf8_lossy(&buf);
-    Some(text.trim_end_matches(['\n', '\r']).chars().take(400).collect())
+    Some(
+        text.trim_end_matches(['\n', '\r'])
+            .chars()
+            .take(400)
+            .collect(),
+    )
 }
 
 /// A G-code reader/interpreter error.
@@ -136,12 +152,21 @@ pub fn config_error(e: &config::ConfigError) -> SourceDiagnostic {
 }
 
 /// An error at a G-code span whose line text must be read again from the file.
-pub fn at_gcode_line(path: &Path, span: gcode::Span, message: String, label: String) -> SourceDiagnostic {
+pub fn at_gcode_line(
+    path: &Path,
+    span: gcode::Span,
+    message: String,
+    label: String,
+) -> SourceDiagnostic {
     let name = path.display().to_string();
     let text = read_line_of(path, span.line);
     SourceDiagnostic {
         message: format!("{name}:{}:{}: {message}", span.line, span.column),
-        source: text.map(|text| LineSource { name, line: span.line as usize, text }),
+        source: text.map(|text| LineSource {
+            name,
+            line: span.line as usize,
+            text,
+        }),
         offset: (span.column as usize).saturating_sub(1),
         len: span.len as usize,
         label,

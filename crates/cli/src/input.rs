@@ -9,20 +9,43 @@ use std::path::Path;
 pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, ProgressBar)> {
     if path == Path::new("-") {
         let bar = ProgressBar::hidden();
-        return Ok((Box::new(BufReader::with_capacity(1 << 16, std::io::stdin())), "<stdin>".into(), bar));
+        return Ok((
+            Box::new(BufReader::with_capacity(1 << 16, std::io::stdin())),
+            "<stdin>".into(),
+            bar,
+        ));
     }
     let file = std::fs::File::open(path)
         .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
     let size = file.metadata().map(|m| m.len()).unwrap_or(0);
     let bar = if size > 16 << 20 {
         let bar = ProgressBar::new(size);
-        if let Ok(style) = ProgressStyle::with_template("{bar:40} {bytes}/{total_bytes} {bytes_per_sec} eta {eta}") {
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:40} {bytes}/{total_bytes} {bytes_per_sec} eta {eta}")
+        {
             bar.set_style(style);
         }
         bar
     } else {
         ProgressBar::hidden()
     };
-    let reader: Box<dyn Read> = Box::new(bar.wrap_read(file));
-    Ok((Box::new(BufReader::with_capacity(1 << 16, reader)), path.display().to_string(), bar))
+    let reader: Box<dyn Read> = Box::new(Interruptible(bar.wrap_read(file)));
+    Ok((
+        Box::new(BufReader::with_capacity(1 << 16, reader)),
+        path.display().to_string(),
+        bar,
+    ))
+}
+
+/// A reader that fails once the user pressed Ctrl-C: every pipeline reading through it stops with an error,
+/// and its temporary output files are dropped instead of renamed into place.
+struct Interruptible<R>(R);
+
+impl<R: Read> Read for Interruptible<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if crate::interrupt::requested() {
+            return Err(std::io::Error::other(crate::interrupt::INTERRUPTED_MESSAGE));
+        }
+        self.0.read(buf)
+    }
 }

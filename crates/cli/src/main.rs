@@ -4,6 +4,7 @@
 mod cmd;
 mod diag;
 mod input;
+mod interrupt;
 mod output;
 mod testprint;
 
@@ -11,7 +12,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Debug, Parser)]
-#[command(name = "jointspace", version, about = "Motion host and toolkit for SCARA and polar 3D printers")]
+#[command(
+    name = "jointspace",
+    version,
+    about = "Motion host and toolkit for SCARA and polar 3D printers"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -40,6 +45,13 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Diagnostics stay on one line each, so they can be searched and compared.
+    let _ = miette::set_hook(Box::new(|_| {
+        Box::new(miette::MietteHandlerOpts::new().wrap_lines(false).build())
+    }));
+    if let Err(e) = interrupt::install() {
+        eprintln!("warning: {e}");
+    }
     let result = match cli.command {
         Command::Demo(args) => cmd::demo::run(args),
         Command::Stats(args) => cmd::stats::run(args),
@@ -52,6 +64,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        Err(_) if interrupt::requested() => {
+            eprintln!("{}", interrupt::INTERRUPTED_MESSAGE);
+            ExitCode::from(interrupt::INTERRUPTED_EXIT_CODE as u8)
+        }
         Err(report) => {
             eprintln!("{report:?}");
             ExitCode::FAILURE

@@ -13,7 +13,8 @@ where
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let temp = tempfile::Builder::new()
         .prefix(".jointspace-")
         .tempfile_in(dir)
@@ -23,6 +24,34 @@ where
         fill(&mut writer)?;
         writer.flush()?;
     }
-    temp.persist(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    temp.persist(path)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
     Ok(())
+}
+
+/// Print to standard output. When the reader has gone (`jointspace … | head`), stop quietly instead of
+/// panicking as `print!` would.
+pub fn stdout(text: &str) {
+    use std::io::ErrorKind;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        if e.kind() == ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("cannot write to standard output: {e}");
+        std::process::exit(1);
+    }
+}
+
+/// `print!` through [`stdout`].
+#[macro_export]
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::output::stdout(&format!($($arg)*)) };
+}
+
+/// `println!` through [`stdout`].
+#[macro_export]
+macro_rules! outln {
+    () => { $crate::output::stdout("\n") };
+    ($($arg:tt)*) => { $crate::output::stdout(&format!("{}\n", format!($($arg)*))) };
 }

@@ -67,7 +67,11 @@ struct Gcode<'a> {
 
 impl<'a> Gcode<'a> {
     fn new(spec: &'a TestPrint) -> Self {
-        Gcode { spec, text: String::with_capacity(64 * 1024), at: [f64::NAN; 2] }
+        Gcode {
+            spec,
+            text: String::with_capacity(64 * 1024),
+            at: [f64::NAN; 2],
+        }
     }
 
     fn line(&mut self, s: &str) {
@@ -78,7 +82,10 @@ impl<'a> Gcode<'a> {
     fn header(&mut self) {
         let s = self.spec;
         self.line("; jointspace test print: rings, square, star and an arc");
-        self.line(&format!("; centre {:.1},{:.1} mm, outer radius {:.1} mm, {} layers", s.centre[0], s.centre[1], s.size, s.layers));
+        self.line(&format!(
+            "; centre {:.1},{:.1} mm, outer radius {:.1} mm, {} layers",
+            s.centre[0], s.centre[1], s.size, s.layers
+        ));
         self.line("G21\nG90\nM83\nM104 S210\nM109 S210\nG92 E0");
     }
 
@@ -119,7 +126,13 @@ impl<'a> Gcode<'a> {
         self.travel([c[0] + r, c[1]]);
         let e = std::f64::consts::PI * r * E_PER_MM;
         let f = self.spec.print_speed * 60.0;
-        let _ = writeln!(self.text, "G2 X{:.3} Y{:.3} I{:.3} J0 E{e:.5} F{f:.0}", c[0] - r, c[1], -r);
+        let _ = writeln!(
+            self.text,
+            "G2 X{:.3} Y{:.3} I{:.3} J0 E{e:.5} F{f:.0}",
+            c[0] - r,
+            c[1],
+            -r
+        );
         self.at = [c[0] - r, c[1]];
     }
 }
@@ -142,15 +155,25 @@ fn detour(a: [f64; 2], b: [f64; 2], c: [f64; 2], clearance: f64) -> Option<[f64;
     // Step sideways from the centre, perpendicular to the travel, far enough that both legs clear it.
     let len = len2.sqrt();
     let side = [-d[1] / len, d[0] / len];
-    Some([c[0] + 4.0 * clearance * side[0], c[1] + 4.0 * clearance * side[1]])
+    Some([
+        c[0] + 4.0 * clearance * side[0],
+        c[1] + 4.0 * clearance * side[1],
+    ])
 }
 
 fn circle(c: [f64; 2], r: f64, n: usize) -> Vec<[f64; 2]> {
-    (0..n).map(|i| polar_point(c, r, TAU * i as f64 / n as f64)).collect()
+    (0..n)
+        .map(|i| polar_point(c, r, TAU * i as f64 / n as f64))
+        .collect()
 }
 
 fn square(c: [f64; 2], half: f64) -> Vec<[f64; 2]> {
-    vec![[c[0] - half, c[1] - half], [c[0] + half, c[1] - half], [c[0] + half, c[1] + half], [c[0] - half, c[1] + half]]
+    vec![
+        [c[0] - half, c[1] - half],
+        [c[0] + half, c[1] - half],
+        [c[0] + half, c[1] + half],
+        [c[0] - half, c[1] + half],
+    ]
 }
 
 fn star(c: [f64; 2], outer: f64, inner: f64, points: usize) -> Vec<[f64; 2]> {
@@ -184,9 +207,17 @@ mod tests {
             (a[0] - b[0]).hypot(a[1] - b[1])
         };
         let ring = |r: f64, n: f64| 2.0 * n * r * (std::f64::consts::PI / n).sin();
-        let per_layer = ring(30.0, 120.0) + ring(22.5, 90.0) + 4.0 * 27.0 + 10.0 * star_edge + std::f64::consts::PI * 18.0;
+        let per_layer = ring(30.0, 120.0)
+            + ring(22.5, 90.0)
+            + 4.0 * 27.0
+            + 10.0 * star_edge
+            + std::f64::consts::PI * 18.0;
         let expected = 4.0 * per_layer * E_PER_MM;
-        assert!((stats.total_extrusion - expected).abs() < 1e-3 * expected, "{} vs {expected}", stats.total_extrusion);
+        assert!(
+            (stats.total_extrusion - expected).abs() < 1e-3 * expected,
+            "{} vs {expected}",
+            stats.total_extrusion
+        );
         let bbox = stats.extrusion_bbox.expect("extrudes");
         assert!((bbox.max[0] - 30.0).abs() < 1e-3 && (bbox.min[1] + 30.0).abs() < 1e-3);
     }

@@ -4,6 +4,39 @@
 use gcode::Arc;
 use std::f64::consts::TAU;
 
+/// Most chords one arc may be split into (a kilometre of arc at the default 1 mm resolution): beyond that a
+/// command is refused rather than allowed to exhaust memory and time.
+pub const MAX_ARC_CHORDS: f64 = 1_000_000.0;
+
+/// Points spread over the arc (not the chord ends), for checking the arc's reach before splitting it.
+pub fn probe_points(arc: &Arc, count: usize) -> impl Iterator<Item = [f64; 3]> + '_ {
+    let radius = arc.offset[0].hypot(arc.offset[1]);
+    let start_angle = (-arc.offset[1]).atan2(-arc.offset[0]);
+    let sweep = arc.sweep();
+    (0..=count).map(move |i| {
+        let f = i as f64 / count as f64;
+        let a = start_angle + sweep * f;
+        [
+            arc.centre[0] + radius * a.cos(),
+            arc.centre[1] + radius * a.sin(),
+            arc.start[2] + (arc.target[2] - arc.start[2]) * f,
+        ]
+    })
+}
+
+/// How many chords [`split_arc`] makes of the arc.
+pub fn chord_count(arc: &Arc, resolution: f64) -> f64 {
+    let radius = arc.offset[0].hypot(arc.offset[1]);
+    let flat_mm = radius * arc.sweep().abs();
+    let linear = arc.target[2] - arc.start[2];
+    let travel = if linear != 0.0 {
+        flat_mm.hypot(linear)
+    } else {
+        flat_mm
+    };
+    (travel / resolution).floor().max(1.0)
+}
+
 /// The end points of the chords (the last one is the arc's target), X/Y/Z/E in machine coordinates.
 ///
 /// Chord ends are computed in G-code coordinates and passed through G1's arithmetic (G92 offsets, M221
@@ -11,8 +44,16 @@ use std::f64::consts::TAU;
 /// agree to the last bit; E advances by equal steps of the written amount.
 pub fn split_arc(arc: &Arc, resolution: f64) -> Vec<[f64; 4]> {
     let base = arc.base;
-    let start = [arc.start[0] - base[0], arc.start[1] - base[1], arc.start[2] - base[2]];
-    let target = [arc.target[0] - base[0], arc.target[1] - base[1], arc.target[2] - base[2]];
+    let start = [
+        arc.start[0] - base[0],
+        arc.start[1] - base[1],
+        arc.start[2] - base[2],
+    ];
+    let target = [
+        arc.target[0] - base[0],
+        arc.target[1] - base[1],
+        arc.target[2] - base[2],
+    ];
     // Radius vector from the centre to the start point.
     let r_p = -arc.offset[0];
     let r_q = -arc.offset[1];
@@ -32,7 +73,11 @@ pub fn split_arc(arc: &Arc, resolution: f64) -> Vec<[f64; 4]> {
         angular_travel = TAU;
     }
     let extra_turns = f64::from(arc.turns) * TAU;
-    angular_travel += if arc.clockwise { -extra_turns } else { extra_turns };
+    angular_travel += if arc.clockwise {
+        -extra_turns
+    } else {
+        extra_turns
+    };
 
     let linear_travel = target[2] - start[2];
     let radius = r_p.hypot(r_q);
@@ -79,8 +124,14 @@ struct ArcExtrusion {
 impl ArcExtrusion {
     fn new(arc: &Arc, segments: f64) -> Self {
         let gcode_start = (arc.start[3] - arc.base[3]) / arc.extrude_factor;
-        let gcode_e = if arc.absolute_extrude { gcode_start } else { 0.0 };
-        let per_segment = arc.e_written.map_or(0.0, |written| (written - gcode_e) / segments);
+        let gcode_e = if arc.absolute_extrude {
+            gcode_start
+        } else {
+            0.0
+        };
+        let per_segment = arc
+            .e_written
+            .map_or(0.0, |written| (written - gcode_e) / segments);
         ArcExtrusion {
             machine_e: arc.start[3],
             gcode_e,
@@ -128,7 +179,12 @@ mod tests {
     #[test]
     fn half_circle_is_split_by_length_and_stays_on_the_circle() {
         // Radius 10 half circle: 31.4 mm of travel → 31 chords.
-        let a = arc([10.0, 0.0, 0.0, 0.0], [-10.0, 0.0, 0.0, 3.1], [-10.0, 0.0], false);
+        let a = arc(
+            [10.0, 0.0, 0.0, 0.0],
+            [-10.0, 0.0, 0.0, 3.1],
+            [-10.0, 0.0],
+            false,
+        );
         let pts = split_arc(&a, 1.0);
         assert_eq!(pts.len(), 31);
         for p in &pts {
@@ -141,9 +197,19 @@ mod tests {
 
     #[test]
     fn clockwise_goes_the_other_way_and_full_circle_when_start_is_end() {
-        let a = arc([10.0, 0.0, 0.0, 0.0], [-10.0, 0.0, 0.0, 0.0], [-10.0, 0.0], true);
+        let a = arc(
+            [10.0, 0.0, 0.0, 0.0],
+            [-10.0, 0.0, 0.0, 0.0],
+            [-10.0, 0.0],
+            true,
+        );
         assert!(split_arc(&a, 1.0)[15][1] < -9.9);
-        let full = arc([10.0, 0.0, 0.0, 0.0], [10.0, 0.0, 0.0, 0.0], [-10.0, 0.0], false);
+        let full = arc(
+            [10.0, 0.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0, 0.0],
+            [-10.0, 0.0],
+            false,
+        );
         assert_eq!(split_arc(&full, 1.0).len(), 62);
     }
 }

@@ -131,8 +131,14 @@ mod tests {
         assert_eq!(python_float(300.0), "300.0");
         assert_eq!(python_float(-0.0), "-0.0");
         assert_eq!(python_float(0.0), "0.0");
-        assert_eq!(python_float(1.7905631855129122e-17), "1.7905631855129122e-17");
-        assert_eq!(python_float(-1.3839660443868546e-17), "-1.3839660443868546e-17");
+        assert_eq!(
+            python_float(1.7905631855129122e-17),
+            "1.7905631855129122e-17"
+        );
+        assert_eq!(
+            python_float(-1.3839660443868546e-17),
+            "-1.3839660443868546e-17"
+        );
         assert_eq!(python_float(99999999.9), "99999999.9");
         assert_eq!(python_float(1e16), "1e+16");
         assert_eq!(python_float(0.0001), "0.0001");

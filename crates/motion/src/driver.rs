@@ -1,6 +1,6 @@
 //! From interpreted G-code commands to toolhead actions, with Klipper's handling of each command.
 
-use crate::arcs::split_arc;
+use crate::arcs::{MAX_ARC_CHORDS, chord_count, probe_points, split_arc};
 use crate::limits::VelocityLimits;
 use crate::toolhead::{MoveError, SlowMoves, Toolhead};
 use gcode::{AccelParams, Command, Span, Spanned, VelocityLimit};
@@ -24,12 +24,17 @@ pub enum PlanErrorKind {
     CruiseRatio,
     #[error("G28: this machine has no homing position configured")]
     NoHoming,
+    #[error("arc too long: it would be split into {chords:.0} chords")]
+    ArcTooLong { chords: f64 },
 }
 
 impl PlanError {
     /// The move's segment could not be reached (as opposed to a bad command).
     pub fn is_unreachable(&self) -> bool {
-        matches!(self.kind, PlanErrorKind::Move(MoveError::Unreachable { .. }))
+        matches!(
+            self.kind,
+            PlanErrorKind::Move(MoveError::Unreachable { .. })
+        )
     }
 }
 
@@ -51,8 +56,17 @@ pub struct Planner<'k, S: MoveSink> {
 }
 
 impl<'k, S: MoveSink> Planner<'k, S> {
-    pub fn new(toolhead: Toolhead<'k, S>, arc_resolution: f64, home_position: Option<[f64; 3]>) -> Self {
-        Planner { toolhead, arc_resolution, home_position, warnings: Vec::new() }
+    pub fn new(
+        toolhead: Toolhead<'k, S>,
+        arc_resolution: f64,
+        home_position: Option<[f64; 3]>,
+    ) -> Self {
+        Planner {
+            toolhead,
+            arc_resolution,
+            home_position,
+            warnings: Vec::new(),
+        }
     }
 
     pub fn toolhead(&self) -> &Toolhead<'k, S> {
@@ -96,6 +110,14 @@ impl<'k, S: MoveSink> Planner<'k, S> {
                     .map_err(|e| err(e.into()))?;
             }
             Command::Arc(arc) => {
+                // Reach first (a huge arc is refused for where it goes), then size.
+                for p in probe_points(arc, 64) {
+                    self.toolhead.check_point(p).map_err(|e| err(e.into()))?;
+                }
+                let chords = chord_count(arc, self.arc_resolution);
+                if chords > MAX_ARC_CHORDS {
+                    return Err(err(PlanErrorKind::ArcTooLong { chords }));
+                }
                 for point in split_arc(arc, self.arc_resolution) {
                     self.toolhead
                         .move_to(point, arc.feed, span.line)
@@ -173,7 +195,7 @@ impl<'k, S: MoveSink> Planner<'k, S> {
             limits.max_accel = positive(accel, "ACCEL")?;
         }
         if let Some(scv) = v.square_corner_velocity {
-            if !(scv >= 0.0) || !scv.is_finite() {
+            if scv.is_nan() || scv < 0.0 || !scv.is_finite() {
                 return Err(PlanErrorKind::NotPositive("SQUARE_CORNER_VELOCITY"));
             }
             limits.square_corner_velocity = scv;
@@ -181,7 +203,9 @@ impl<'k, S: MoveSink> Planner<'k, S> {
         let ratio = match (v.minimum_cruise_ratio, v.accel_to_decel) {
             (Some(ratio), _) => Some(ratio),
             // The old ACCEL_TO_DECEL parameter, converted as Klipper converts max_accel_to_decel.
-            (None, Some(atd)) => Some(1.0 - (positive(atd, "ACCEL_TO_DECEL")? / limits.max_accel).min(1.0)),
+            (None, Some(atd)) => {
+                Some(1.0 - (positive(atd, "ACCEL_TO_DECEL")? / limits.max_accel).min(1.0))
+            }
             (None, None) => None,
         };
         if let Some(ratio) = ratio {

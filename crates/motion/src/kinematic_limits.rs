@@ -53,7 +53,11 @@ pub fn split(
     if limits.is_empty() || length <= 0.0 {
         return Vec::new();
     }
-    let dir = [(end[0] - start[0]) / length, (end[1] - start[1]) / length, (end[2] - start[2]) / length];
+    let dir = [
+        (end[0] - start[0]) / length,
+        (end[1] - start[1]) / length,
+        (end[2] - start[2]) / length,
+    ];
     let line = Line { start, dir, length };
     // Fast path: bounds over the whole move; most moves are nowhere near a limit.
     let slack = limits.iter().all(|l| {
@@ -64,8 +68,10 @@ pub fn split(
     if slack {
         return Vec::new();
     }
-    let profiles: Vec<(MotorLimit, Profile)> =
-        limits.iter().map(|l| (*l, Profile::new(kin, l.motor, &line))).collect();
+    let profiles: Vec<(MotorLimit, Profile)> = limits
+        .iter()
+        .map(|l| (*l, Profile::new(kin, l.motor, &line)))
+        .collect();
     let mut cuts = vec![0.0, length];
     for (limit, profile) in &profiles {
         profile.breakpoints(&line, limit, speed, &mut cuts);
@@ -85,9 +91,18 @@ pub fn split(
             max_speed = max_speed.min(v);
             max_accel = max_accel.min(a);
         }
-        push_merged(&mut spans, Span { end: s1, max_speed, max_accel });
+        push_merged(
+            &mut spans,
+            Span {
+                end: s1,
+                max_speed,
+                max_accel,
+            },
+        );
     }
-    let binds = spans.iter().any(|s| s.max_speed < speed || s.max_accel < accel);
+    let binds = spans
+        .iter()
+        .any(|s| s.max_speed < speed || s.max_accel < accel);
     if binds { spans } else { Vec::new() }
 }
 
@@ -96,10 +111,10 @@ pub fn split(
 fn caps(limit: &MotorLimit, (rate, curvature): (f64, f64), speed: f64, accel: f64) -> (f64, f64) {
     let mut v = speed;
     let mut a = accel;
-    if let Some(max_v) = limit.max_velocity {
-        if rate > 0.0 {
-            v = v.min(max_v / rate);
-        }
+    if let Some(max_v) = limit.max_velocity
+        && rate > 0.0
+    {
+        v = v.min(max_v / rate);
     }
     if let Some(max_a) = limit.max_accel {
         if curvature > 0.0 {
@@ -114,11 +129,12 @@ fn caps(limit: &MotorLimit, (rate, curvature): (f64, f64), speed: f64, accel: f6
 
 /// Append `span`, joining it to the previous one when their caps are equal.
 fn push_merged(spans: &mut Vec<Span>, span: Span) {
-    if let Some(last) = spans.last_mut() {
-        if last.max_speed == span.max_speed && last.max_accel == span.max_accel {
-            last.end = span.end;
-            return;
-        }
+    if let Some(last) = spans.last_mut()
+        && last.max_speed == span.max_speed
+        && last.max_accel == span.max_accel
+    {
+        last.end = span.end;
+        return;
     }
     spans.push(span);
 }
@@ -132,7 +148,11 @@ struct Line {
 
 impl Line {
     fn at(&self, s: f64) -> Vec3 {
-        [self.start[0] + self.dir[0] * s, self.start[1] + self.dir[1] * s, self.start[2] + self.dir[2] * s]
+        [
+            self.start[0] + self.dir[0] * s,
+            self.start[1] + self.dir[1] * s,
+            self.start[2] + self.dir[2] * s,
+        ]
     }
 
     /// Where the line passes closest to `centre` in XY: (s of closest approach, signed distance, XY speed share).
@@ -154,19 +174,32 @@ impl Line {
 /// How one motor's position varies along the line.
 enum Profile {
     /// q' constant, q'' = 0.
-    Linear { rate: f64 },
+    Linear {
+        rate: f64,
+    },
     /// Polar arm or bed about `centre`: closest approach at `s_star`, distance `d`, XY share `xy` of the path.
-    Radius { s_star: f64, d: f64, xy: f64 },
-    Angle { s_star: f64, d: f64, xy: f64 },
+    Radius {
+        s_star: f64,
+        d: f64,
+        xy: f64,
+    },
+    Angle {
+        s_star: f64,
+        d: f64,
+        xy: f64,
+    },
     /// Sampled through the Jacobian row of motor `motor`.
-    General { motor: usize },
+    General {
+        motor: usize,
+    },
 }
 
 impl Profile {
     fn new(kin: &dyn Kinematics, motor: usize, line: &Line) -> Profile {
         match kin.motor_map(motor) {
             MotorMap::Linear { coeffs } => Profile::Linear {
-                rate: (coeffs[0] * line.dir[0] + coeffs[1] * line.dir[1] + coeffs[2] * line.dir[2]).abs(),
+                rate: (coeffs[0] * line.dir[0] + coeffs[1] * line.dir[1] + coeffs[2] * line.dir[2])
+                    .abs(),
             },
             MotorMap::Radius { centre } => {
                 let (s_star, d, xy) = line.closest_approach(centre);
@@ -201,7 +234,8 @@ impl Profile {
                 cuts.retain(|&c| c >= 0.0 && c <= line.length);
             }
             Profile::General { .. } => {
-                let spans = ((line.length / GENERAL_SPAN_MM).ceil() as usize).clamp(1, GENERAL_MAX_SPANS);
+                let spans =
+                    ((line.length / GENERAL_SPAN_MM).ceil() as usize).clamp(1, GENERAL_MAX_SPANS);
                 for i in 1..spans {
                     cuts.push(line.length * i as f64 / spans as f64);
                 }
@@ -216,7 +250,11 @@ impl Profile {
             Profile::Radius { s_star, d, xy } | Profile::Angle { s_star, d, xy } => {
                 // |t| range over the span, in XY mm.
                 let (t0, t1) = ((s0 - s_star) * xy, (s1 - s_star) * xy);
-                let lo = if t0 <= 0.0 && t1 >= 0.0 { 0.0 } else { t0.abs().min(t1.abs()) };
+                let lo = if t0 <= 0.0 && t1 >= 0.0 {
+                    0.0
+                } else {
+                    t0.abs().min(t1.abs())
+                };
                 let hi = t0.abs().max(t1.abs());
                 let d = d.abs();
                 let (rate, curvature) = if matches!(self, Profile::Radius { .. }) {
@@ -240,7 +278,9 @@ fn band_reach(limit: &MotorLimit, d: f64, speed: f64) -> f64 {
         rho = rho.max(2.0 * speed / v);
     }
     if let Some(a) = limit.max_accel {
-        rho = rho.max((8.0 * speed * speed / a).sqrt()).max(4.0 * speed * speed / a);
+        rho = rho
+            .max((8.0 * speed * speed / a).sqrt())
+            .max(4.0 * speed * speed / a);
     }
     (rho * rho - d * d).max(0.0).sqrt() * BAND_GROWTH
 }
@@ -262,7 +302,11 @@ fn radius_bounds(d: f64, lo: f64, hi: f64) -> (f64, f64) {
     let r_hi = (d * d + hi * hi).sqrt();
     let rate = if r_hi > 0.0 { hi / r_hi } else { 0.0 };
     let r_lo = (d * d + lo * lo).sqrt();
-    let curvature = if r_lo > 0.0 { d * d / (r_lo * r_lo * r_lo) } else { 0.0 };
+    let curvature = if r_lo > 0.0 {
+        d * d / (r_lo * r_lo * r_lo)
+    } else {
+        0.0
+    };
     (rate, curvature)
 }
 
@@ -282,10 +326,10 @@ fn general_bounds(kin: &dyn Kinematics, motor: usize, line: &Line, s0: f64, s1: 
         let row = rows[motor];
         let rate = row[0] * line.dir[0] + row[1] * line.dir[1] + row[2] * line.dir[2];
         max_rate = max_rate.max(rate.abs());
-        if let Some(p) = prev {
-            if step > 0.0 {
-                max_curvature = max_curvature.max(((rate - p) / step).abs());
-            }
+        if let Some(p) = prev
+            && step > 0.0
+        {
+            max_curvature = max_curvature.max(((rate - p) / step).abs());
         }
         prev = Some(rate);
     }

@@ -9,8 +9,8 @@ pub mod csv;
 pub mod driver;
 pub mod kinematic_limits;
 pub mod limits;
-pub mod machine;
 pub mod lookahead;
+pub mod machine;
 pub mod toolhead;
 
 pub use driver::{PlanError, PlanErrorKind, Planner, Warning};

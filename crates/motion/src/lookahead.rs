@@ -70,7 +70,8 @@ impl Move {
         for i in 0..4 {
             axes_d[i] = end[i] - start[i];
         }
-        let mut move_d = (axes_d[0] * axes_d[0] + axes_d[1] * axes_d[1] + axes_d[2] * axes_d[2]).sqrt();
+        let mut move_d =
+            (axes_d[0] * axes_d[0] + axes_d[1] * axes_d[1] + axes_d[2] * axes_d[2]).sqrt();
         let mut accel = limits.max_accel;
         let mut velocity = speed.min(limits.max_velocity);
         let is_kinematic = move_d >= MIN_KINEMATIC_DISTANCE;
@@ -263,7 +264,11 @@ impl LookAhead {
         self.scratch.clear();
         self.scratch.resize(
             flush_count,
-            Junction { start_v2: 0.0, cruise_v2: None, end_v2: 0.0 },
+            Junction {
+                start_v2: 0.0,
+                cruise_v2: None,
+                end_v2: 0.0,
+            },
         );
         let mut next_start_v2 = 0.0;
         let mut next_mcr_start_v2 = 0.0;
@@ -295,7 +300,11 @@ impl LookAhead {
                 );
                 pending_cruise_assign = 0;
             }
-            self.scratch[i] = Junction { start_v2, cruise_v2, end_v2: next_start_v2 };
+            self.scratch[i] = Junction {
+                start_v2,
+                cruise_v2,
+                end_v2: next_start_v2,
+            };
             next_start_v2 = start_v2;
             next_mcr_start_v2 = mcr_start_v2;
         }
@@ -304,7 +313,9 @@ impl LookAhead {
         }
         let mut prev_cruise_v2: f64 = 0.0;
         for (i, junction) in self.scratch.iter().take(flush_count).enumerate() {
-            let cruise_v2 = junction.cruise_v2.unwrap_or(prev_cruise_v2.min(junction.start_v2));
+            let cruise_v2 = junction
+                .cruise_v2
+                .unwrap_or(prev_cruise_v2.min(junction.start_v2));
             self.queue[i].set_junction(
                 junction.start_v2.min(cruise_v2),
                 cruise_v2,
@@ -337,7 +348,8 @@ mod tests {
 
     #[test]
     fn lone_move_is_a_symmetric_trapezoid() {
-        let mut mv = Move::new([0.0; 4], [100.0, 0.0, 0.0, 0.0], 50.0, &limits(), 1).expect("moves");
+        let mut mv =
+            Move::new([0.0; 4], [100.0, 0.0, 0.0, 0.0], 50.0, &limits(), 1).expect("moves");
         mv.set_junction(0.0, 2500.0, 0.0);
         // 0 → 50 mm/s at 1000 mm/s²: 0.05 s and 1.25 mm each way, 97.5 mm of cruise at 50 mm/s.
         assert!((mv.plan.accel_t - 0.05).abs() < 1e-15);

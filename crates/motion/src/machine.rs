@@ -51,7 +51,8 @@ pub struct MachineSetup {
 
 impl MachineSetup {
     pub fn from_config(machine: &MachineConfig) -> Result<MachineSetup, SetupError> {
-        let kinematics = kinematics::build(&machine.params).map_err(|e| SetupError::Kinematics(e.to_string()))?;
+        let kinematics = kinematics::build(&machine.params)
+            .map_err(|e| SetupError::Kinematics(e.to_string()))?;
         let limits = &machine.limits;
         let mut planner = PlannerConfig::klipper(VelocityLimits {
             max_velocity: limits.max_velocity,
@@ -76,7 +77,11 @@ impl MachineSetup {
         planner.kinematic_limits = motor_limits(machine, kinematics.as_ref());
         planner.centre_turn = centre_turn(machine, kinematics.as_ref());
         let home_position = home_position(machine, kinematics.as_ref())?;
-        Ok(MachineSetup { kinematics, planner, home_position })
+        Ok(MachineSetup {
+            kinematics,
+            planner,
+            home_position,
+        })
     }
 }
 
@@ -89,16 +94,25 @@ fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit
     for (index, motor) in kin.motors().iter().enumerate() {
         let (mut velocity, accel) = match (machine.kinematics, motor.name.as_str()) {
             (KinematicsKind::Polar, "stepper_bed") => (l.max_angular_velocity, l.max_angular_accel),
-            (KinematicsKind::Scara, "stepper_a" | "stepper_b") => (l.max_joint_velocity, l.max_joint_accel),
+            (KinematicsKind::Scara, "stepper_a" | "stepper_b") => {
+                (l.max_joint_velocity, l.max_joint_accel)
+            }
             _ => (None, None),
         };
-        let step_rate = machine.stepper(&motor.name).and_then(|s| s.max_step_rate).or(l.max_step_rate);
+        let step_rate = machine
+            .stepper(&motor.name)
+            .and_then(|s| s.max_step_rate)
+            .or(l.max_step_rate);
         if let Some(rate) = step_rate {
             let v = rate * motor.step_distance;
             velocity = Some(velocity.map_or(v, |limit| limit.min(v)));
         }
         if velocity.is_some() || accel.is_some() {
-            limits.push(MotorLimit { motor: index, max_velocity: velocity, max_accel: accel });
+            limits.push(MotorLimit {
+                motor: index,
+                max_velocity: velocity,
+                max_accel: accel,
+            });
         }
     }
     limits
@@ -111,7 +125,10 @@ fn centre_turn(machine: &MachineConfig, kin: &dyn Kinematics) -> Option<CentreTu
     let MotorMap::Angle { centre } = kin.motor_map(bed) else {
         return None;
     };
-    let radius = machine.stepper("stepper_arm").and_then(|s| s.position_max).filter(|r| *r > 0.0)?;
+    let radius = machine
+        .stepper("stepper_arm")
+        .and_then(|s| s.position_max)
+        .filter(|r| *r > 0.0)?;
     let l = &machine.limits;
     Some(CentreTurn {
         centre,
@@ -124,7 +141,10 @@ fn centre_turn(machine: &MachineConfig, kin: &dyn Kinematics) -> Option<CentreTu
 /// declared 0 (as Klipper does). SCARA: each joint at its endstop angle (degrees in the file), the elbow
 /// motor's reading converted through the coupling by the forward kinematics. Cartesian: every axis at its
 /// endstop.
-fn home_position(machine: &MachineConfig, kin: &dyn Kinematics) -> Result<Option<[f64; 3]>, SetupError> {
+fn home_position(
+    machine: &MachineConfig,
+    kin: &dyn Kinematics,
+) -> Result<Option<[f64; 3]>, SetupError> {
     let endstop = |name: &str| {
         machine
             .stepper(name)
@@ -132,7 +152,11 @@ fn home_position(machine: &MachineConfig, kin: &dyn Kinematics) -> Result<Option
             .and_then(|h| h.position_endstop)
     };
     let pose = match machine.kinematics {
-        KinematicsKind::Cartesian => match (endstop("stepper_x"), endstop("stepper_y"), endstop("stepper_z")) {
+        KinematicsKind::Cartesian => match (
+            endstop("stepper_x"),
+            endstop("stepper_y"),
+            endstop("stepper_z"),
+        ) {
             (Some(x), Some(y), Some(z)) => Some([x, y, z]),
             _ => None,
         },
@@ -140,8 +164,14 @@ fn home_position(machine: &MachineConfig, kin: &dyn Kinematics) -> Result<Option
             (Some(arm), Some(z)) => Some(kin_forward(kin, &[0.0, arm, z])?),
             _ => None,
         },
-        KinematicsKind::Scara => match (endstop("stepper_a"), endstop("stepper_b"), endstop("stepper_z")) {
-            (Some(a), Some(b), Some(z)) => Some(kin_forward(kin, &[a.to_radians(), b.to_radians(), z])?),
+        KinematicsKind::Scara => match (
+            endstop("stepper_a"),
+            endstop("stepper_b"),
+            endstop("stepper_z"),
+        ) {
+            (Some(a), Some(b), Some(z)) => {
+                Some(kin_forward(kin, &[a.to_radians(), b.to_radians(), z])?)
+            }
             _ => None,
         },
     };
@@ -155,8 +185,11 @@ fn kin_forward(kin: &dyn Kinematics, motors: &[f64]) -> Result<[f64; 3], SetupEr
         reason: e.to_string(),
     })?;
     let mut check = vec![0.0; kin.motors().len()];
-    kin.inverse(p, &mut check)
-        .map_err(|e| SetupError::Home { x: p[0], y: p[1], reason: e.to_string() })?;
+    kin.inverse(p, &mut check).map_err(|e| SetupError::Home {
+        x: p[0],
+        y: p[1],
+        reason: e.to_string(),
+    })?;
     Ok(p)
 }
 
@@ -186,7 +219,10 @@ pub struct CheckReport {
 
 impl CheckReport {
     pub fn errors(&self) -> usize {
-        self.problems.iter().filter(|p| p.severity == Severity::Error).count()
+        self.problems
+            .iter()
+            .filter(|p| p.severity == Severity::Error)
+            .count()
     }
 }
 
@@ -194,7 +230,12 @@ impl CheckReport {
 /// syntax errors, unreachable segments (skipped, the machine stays put), commands the planner refused,
 /// ignored commands, and moves that a machine limit slows below a quarter of their requested speed.
 /// At most `max_problems` are kept (all are counted in the error total).
-pub fn check_gcode(setup: &MachineSetup, input: impl BufRead, source_name: &str, max_problems: usize) -> CheckReport {
+pub fn check_gcode(
+    setup: &MachineSetup,
+    input: impl BufRead,
+    source_name: &str,
+    max_problems: usize,
+) -> CheckReport {
     let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), ());
     let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
     let mut commands = Commands::from_reader(input, source_name);
@@ -222,7 +263,12 @@ pub fn check_gcode(setup: &MachineSetup, input: impl BufRead, source_name: &str,
                 Ok(Some(position)) => commands.interpreter_mut().set_position(position),
                 Ok(None) => {}
                 Err(e) => {
-                    push(Problem { span: e.span, severity: Severity::Error, message: e.kind.to_string(), line_text: None });
+                    push(Problem {
+                        span: e.span,
+                        severity: Severity::Error,
+                        message: e.kind.to_string(),
+                        line_text: None,
+                    });
                     let position = planner.toolhead().position();
                     commands.interpreter_mut().set_position(position);
                 }
@@ -230,15 +276,29 @@ pub fn check_gcode(setup: &MachineSetup, input: impl BufRead, source_name: &str,
         }
     }
     for w in commands.take_warnings() {
-        push(Problem { span: w.span, severity: Severity::Warning, message: w.to_string(), line_text: None });
+        push(Problem {
+            span: w.span,
+            severity: Severity::Warning,
+            message: w.to_string(),
+            line_text: None,
+        });
     }
     let (_, end_time, warnings, slow) = planner.finish();
     for w in warnings {
-        push(Problem { span: w.span, severity: Severity::Warning, message: w.message, line_text: None });
+        push(Problem {
+            span: w.span,
+            severity: Severity::Warning,
+            message: w.message,
+            line_text: None,
+        });
     }
     for s in &slow.first {
         push(Problem {
-            span: gcode::Span { line: s.origin, column: 1, len: 0 },
+            span: gcode::Span {
+                line: s.origin,
+                column: 1,
+                len: 0,
+            },
             severity: Severity::Warning,
             message: format!(
                 "move slowed to {:.1} mm/s by a machine limit (requested {:.1} mm/s)",
@@ -248,7 +308,11 @@ pub fn check_gcode(setup: &MachineSetup, input: impl BufRead, source_name: &str,
         });
     }
     problems.sort_by_key(|p| (p.span.line, p.span.column));
-    CheckReport { problems, end_time, slow_moves: slow.total }
+    CheckReport {
+        problems,
+        end_time,
+        slow_moves: slow.total,
+    }
 }
 
 /// Bytes Klipper's batch mode reads from its input at a time.
@@ -276,7 +340,8 @@ pub fn plan_gcode<S: MoveSink>(
     while let Some(command) = commands.next_command() {
         let command = command?;
         // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
-        let line_end_block = commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
+        let line_end_block =
+            commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
         while block < line_end_block {
             planner.input_block_boundary();
             block += 1;
@@ -295,5 +360,13 @@ pub fn plan_gcode<S: MoveSink>(
     }
     let gcode_warnings = commands.take_warnings();
     let (sink, end_time, warnings, slow_moves) = planner.finish();
-    Ok((sink, PlanSummary { end_time, warnings, gcode_warnings, slow_moves }))
+    Ok((
+        sink,
+        PlanSummary {
+            end_time,
+            warnings,
+            gcode_warnings,
+            slow_moves,
+        },
+    ))
 }

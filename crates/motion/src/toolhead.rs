@@ -26,10 +26,17 @@ const DISABLE_STALL_TIME: f64 = 0.100;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MoveError {
     #[error("move to ({x:.3}, {y:.3}, {z:.3}) is not reachable: {source}")]
-    Unreachable { x: f64, y: f64, z: f64, source: SegmentError },
+    Unreachable {
+        x: f64,
+        y: f64,
+        z: f64,
+        source: SegmentError,
+    },
     #[error("extrusion without an [extruder] section")]
     NoExtruder,
-    #[error("extrude-only move of {distance:.3} mm exceeds max_extrude_only_distance ({max:.3} mm)")]
+    #[error(
+        "extrude-only move of {distance:.3} mm exceeds max_extrude_only_distance ({max:.3} mm)"
+    )]
     ExtrudeOnlyTooLong { distance: f64, max: f64 },
     #[error(
         "move exceeds the maximum extrusion cross-section ({area:.3} mm² vs {max_area:.3} mm², see max_extrude_cross_section)"
@@ -166,12 +173,12 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let Some(whole) = Move::new(start, target, speed, &self.limits, origin) else {
             return Ok(());
         };
-        if let Some(turn) = self.config.centre_turn {
-            if let Some(centre_point) = centre_crossing(&whole, turn.centre) {
-                self.move_to(centre_point, speed, origin)?;
-                self.turn_bed_at_centre(&turn);
-                return self.move_to(target, speed, origin);
-            }
+        if let Some(turn) = self.config.centre_turn
+            && let Some(centre_point) = centre_crossing(&whole, turn.centre)
+        {
+            self.move_to(centre_point, speed, origin)?;
+            self.turn_bed_at_centre(&turn);
+            return self.move_to(target, speed, origin);
         }
         if whole.is_kinematic {
             self.check_reach(&whole)?;
@@ -195,7 +202,9 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let mut from = start;
         for (i, span) in spans.iter().enumerate() {
             if !(span.max_speed > 0.0 && span.max_speed.is_finite() && span.max_accel > 0.0) {
-                return Err(MoveError::NoSpeedLeft { reason: "it passes through the rotation centre or a singular pose" });
+                return Err(MoveError::NoSpeedLeft {
+                    reason: "it passes through the rotation centre or a singular pose",
+                });
             }
             let to = if i + 1 == spans.len() {
                 whole.end_pos
@@ -217,7 +226,10 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     fn queue_move(&mut self, mut mv: Move, speed: f64) -> Result<(), MoveError> {
         if mv.is_kinematic && self.config.apply_z_limits && mv.axes_d[2] != 0.0 {
             let z_ratio = mv.move_d / mv.axes_d[2].abs();
-            mv.limit_speed(self.config.max_z_velocity * z_ratio, self.config.max_z_accel * z_ratio);
+            mv.limit_speed(
+                self.config.max_z_velocity * z_ratio,
+                self.config.max_z_accel * z_ratio,
+            );
         }
         if mv.axes_d[3] != 0.0 {
             check_extrusion(self.config.extruder.as_ref(), &mut mv)?;
@@ -258,7 +270,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     fn turn_bed_at_centre(&mut self, turn: &CentreTurn) {
         self.flush_lookahead();
         let start = self.last_move_time();
-        let (accel_t, cruise_t, cruise_v) = trapezoid_for_turn(std::f64::consts::PI, turn.max_velocity, turn.max_accel);
+        let (accel_t, cruise_t, cruise_v) =
+            trapezoid_for_turn(std::f64::consts::PI, turn.max_velocity, turn.max_accel);
         let mv = TrapezoidMove {
             print_time: start,
             accel_t,
@@ -276,12 +289,32 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         self.note_motion_queued(end);
     }
 
+    /// Whether the toolhead could be at `p` (used to refuse arcs that leave the workspace before splitting them).
+    pub fn check_point(&self, p: [f64; 3]) -> Result<(), MoveError> {
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(MoveError::NotFinite);
+        }
+        self.kinematics
+            .check_point(p)
+            .map_err(|reason| MoveError::Unreachable {
+                x: p[0],
+                y: p[1],
+                z: p[2],
+                source: SegmentError { t: 0.0, reason },
+            })
+    }
+
     /// Reachability along the whole segment (not just its end points).
     fn check_reach(&self, mv: &Move) -> Result<(), MoveError> {
         let (start, end) = (xyz(mv.start_pos), xyz(mv.end_pos));
         self.kinematics
             .check_segment(start, end)
-            .map_err(|source| MoveError::Unreachable { x: end[0], y: end[1], z: end[2], source })
+            .map_err(|source| MoveError::Unreachable {
+                x: end[0],
+                y: end[1],
+                z: end[2],
+                source,
+            })
     }
 
     /// G4: wait `seconds` after the queued moves finish.
@@ -390,8 +423,12 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let flush_time = want_flush_time
             .max(self.clock.last_flush_time)
             .max(want_step_gen_time - STEPCOMPRESS_FLUSH_TIME);
-        let step_gen_time = want_step_gen_time.max(self.clock.last_step_gen_time).max(flush_time);
-        if !self.need_prime && step_gen_time >= self.print_time - self.config.kin_flush_delay - 0.001 {
+        let step_gen_time = want_step_gen_time
+            .max(self.clock.last_step_gen_time)
+            .max(flush_time);
+        if !self.need_prime
+            && step_gen_time >= self.print_time - self.config.kin_flush_delay - 0.001
+        {
             self.flush_lookahead();
         }
         self.clock.last_flush_time = flush_time;
@@ -412,7 +449,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     /// Print time of the first move after the queue ran empty: not before the start buffer, and not before
     /// step generation can restart.
     fn calc_print_time(&mut self) {
-        let kin_time = MIN_KIN_TIME.max(self.clock.last_step_gen_time) + self.config.kin_flush_delay;
+        let kin_time =
+            MIN_KIN_TIME.max(self.clock.last_step_gen_time) + self.config.kin_flush_delay;
         let min_print_time = self.config.buffer_time_start.max(kin_time);
         if min_print_time > self.print_time {
             self.print_time = min_print_time;
@@ -430,7 +468,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             let mut next_move_time = self.print_time;
             for mv in &moves {
                 self.emit(next_move_time, mv);
-                next_move_time = next_move_time + mv.plan.accel_t + mv.plan.cruise_t + mv.plan.decel_t;
+                next_move_time =
+                    next_move_time + mv.plan.accel_t + mv.plan.cruise_t + mv.plan.decel_t;
             }
             self.print_time = self.print_time.max(next_move_time);
             self.note_motion_queued(next_move_time);
@@ -461,7 +500,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         if mv.axes_d[3] != 0.0 {
             let e_ratio = mv.axes_r[3];
             // The y component flags moves where pressure advance could apply (extruding while moving in XY).
-            let pressure_advance_flag = e_ratio > 0.0 && (mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0);
+            let pressure_advance_flag =
+                e_ratio > 0.0 && (mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0);
             self.sink.append(
                 Queue::Extruder,
                 &TrapezoidMove {
@@ -502,7 +542,12 @@ fn centre_crossing(mv: &Move, centre: [f64; 2]) -> Option<[f64; 4]> {
     if near[0].hypot(near[1]) > TOLERANCE {
         return None;
     }
-    Some([centre[0], centre[1], a[2] + (b[2] - a[2]) * t, a[3] + (b[3] - a[3]) * t])
+    Some([
+        centre[0],
+        centre[1],
+        a[2] + (b[2] - a[2]) * t,
+        a[3] + (b[3] - a[3]) * t,
+    ])
 }
 
 /// Accelerate, cruise and decelerate through `angle` within `max_velocity` and `max_accel`:
@@ -510,7 +555,11 @@ fn centre_crossing(mv: &Move, centre: [f64; 2]) -> Option<[f64; 4]> {
 fn trapezoid_for_turn(angle: f64, max_velocity: f64, max_accel: f64) -> (f64, f64, f64) {
     let ramps = max_velocity * max_velocity / max_accel;
     if angle >= ramps {
-        (max_velocity / max_accel, (angle - ramps) / max_velocity, max_velocity)
+        (
+            max_velocity / max_accel,
+            (angle - ramps) / max_velocity,
+            max_velocity,
+        )
     } else {
         let peak = (angle * max_accel).sqrt();
         (peak / max_accel, 0.0, peak)
@@ -536,7 +585,10 @@ fn check_extrusion(extruder: Option<&ExtruderLimits>, mv: &mut Move) -> Result<(
             });
         }
         let inv_ratio = 1.0 / e_ratio.abs();
-        mv.limit_speed(extruder.max_e_velocity * inv_ratio, extruder.max_e_accel * inv_ratio);
+        mv.limit_speed(
+            extruder.max_e_velocity * inv_ratio,
+            extruder.max_e_accel * inv_ratio,
+        );
     } else if e_ratio > extruder.max_extrude_ratio
         && e_distance > extruder.nozzle_diameter * extruder.max_extrude_ratio
     {

@@ -442,7 +442,8 @@ impl MotorStepper {
         let base = self.bed_angle - span.d0;
         let fa = self.bed_angle;
         let fb = base + span.d1;
-        let mut inverse = |level: f64, _dir: f64| span.time_at(clamp_between(level - base, span.d0, span.d1));
+        let mut inverse =
+            |level: f64, _dir: f64| span.time_at(clamp_between(level - base, span.d0, span.d1));
         self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
     }

@@ -141,8 +141,14 @@ impl<S: StepSink + Send> MoveSink for StepPipeline<'_, S> {
 
 /// What the planning thread hands the stepping thread.
 enum Message {
-    Chunk { toolhead: Vec<Piece>, extruder: Vec<Piece> },
-    SetPosition { xyz: Vec3, e: f64 },
+    Chunk {
+        toolhead: Vec<Piece>,
+        extruder: Vec<Piece>,
+    },
+    SetPosition {
+        xyz: Vec3,
+        e: f64,
+    },
 }
 
 /// Chunks in flight between the threads (bounded, so memory stays bounded).
@@ -162,7 +168,9 @@ pub struct ChunkSender {
 impl std::fmt::Debug for Message {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Message::Chunk { toolhead, extruder } => write!(f, "Chunk({}, {})", toolhead.len(), extruder.len()),
+            Message::Chunk { toolhead, extruder } => {
+                write!(f, "Chunk({}, {})", toolhead.len(), extruder.len())
+            }
             Message::SetPosition { xyz, e } => write!(f, "SetPosition({xyz:?}, {e})"),
         }
     }
@@ -173,10 +181,12 @@ impl ChunkSender {
         if self.toolhead.is_empty() && self.extruder.is_empty() {
             return;
         }
-        let (mut toolhead, mut extruder) = self
-            .recycled
-            .try_recv()
-            .unwrap_or_else(|_| (Vec::with_capacity(CHUNK_PIECES), Vec::with_capacity(CHUNK_PIECES)));
+        let (mut toolhead, mut extruder) = self.recycled.try_recv().unwrap_or_else(|_| {
+            (
+                Vec::with_capacity(CHUNK_PIECES),
+                Vec::with_capacity(CHUNK_PIECES),
+            )
+        });
         std::mem::swap(&mut toolhead, &mut self.toolhead);
         std::mem::swap(&mut extruder, &mut self.extruder);
         self.toolhead.clear();
@@ -238,13 +248,18 @@ where
             let mut pipeline = StepPipeline::new(kin, extruder, config, sinks);
             for message in from_planner {
                 match message {
-                    Message::Chunk { mut toolhead, mut extruder } => {
+                    Message::Chunk {
+                        mut toolhead,
+                        mut extruder,
+                    } => {
                         pipeline.run_pieces(&toolhead, &extruder);
                         toolhead.clear();
                         extruder.clear();
                         let _ = recycle.try_send((toolhead, extruder));
                     }
-                    Message::SetPosition { xyz, e } => MoveSink::set_position(&mut pipeline, xyz, e),
+                    Message::SetPosition { xyz, e } => {
+                        MoveSink::set_position(&mut pipeline, xyz, e)
+                    }
                 }
                 if pipeline.error.is_some() {
                     break;

@@ -81,13 +81,17 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
 
 /// Scan settings for the arguments.
 pub fn scan_params(args: &CentreArgs) -> ScanParams {
-    ScanParams { magnet_count: args.magnets, ..ScanParams::default() }
+    ScanParams {
+        magnet_count: args.magnets,
+        ..ScanParams::default()
+    }
 }
 
 fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     let params = scan_params(&args);
     let (result, truth) = if let Some(path) = &args.scan {
-        let text = std::fs::read_to_string(path).map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
         let slots = calibrate::scan::parse_detections(&text, &path.display().to_string())
             .map_err(|e| miette::miette!("{e}"))?;
         let result = calibrate::scan::centre_from_detections(&params, slots.near, slots.far)
@@ -98,37 +102,54 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     } else {
         return Err(miette::miette!("give --simulate or --scan FILE"));
     };
-    result.write_json(&args.out).map_err(|e| miette::miette!("{e}"))?;
-    print!("{}", render_centre(&result, truth));
-    println!("  result written to {}", args.out.display());
+    result
+        .write_json(&args.out)
+        .map_err(|e| miette::miette!("{e}"))?;
+    crate::out!("{}", render_centre(&result, truth));
+    crate::outln!("  result written to {}", args.out.display());
     if let Some(png) = &args.plot {
         draw_magnet_map(&result, png)?;
-        println!("  magnet map drawn in {}", png.display());
+        crate::outln!("  magnet map drawn in {}", png.display());
     }
     Ok(ExitCode::SUCCESS)
 }
 
 /// Scan a simulated bed; the result and the true offsets.
-pub fn simulate_scan(args: &CentreArgs, params: &ScanParams) -> miette::Result<(CentreResult, Option<[f64; 2]>)> {
-    let mut bed = sim::hall::HallBedConfig { magnet_count: args.magnets, seed: args.seed, ..Default::default() };
+pub fn simulate_scan(
+    args: &CentreArgs,
+    params: &ScanParams,
+) -> miette::Result<(CentreResult, Option<[f64; 2]>)> {
+    let mut bed = sim::hall::HallBedConfig {
+        magnet_count: args.magnets,
+        seed: args.seed,
+        ..Default::default()
+    };
     bed.sensor.noise = args.noise * 1e-3;
     bed = match &args.offset {
         Some(text) => {
             let [dx, dy] = parse_pair(text, "--offset")?;
-            sim::hall::HallBedConfig { arm_zero_offset: dx, arm_lateral_offset: dy, ..bed }
+            sim::hall::HallBedConfig {
+                arm_zero_offset: dx,
+                arm_lateral_offset: dy,
+                ..bed
+            }
         }
         None => bed.random_offsets(2.0, args.seed),
     };
     let truth = [bed.arm_zero_offset, bed.arm_lateral_offset];
     let mut scanner = sim::hall::HallScanner::new(bed).map_err(|e| miette::miette!("{e}"))?;
-    let result = calibrate::scan::scan_centre(&mut scanner, params).map_err(|e| miette::miette!("{e}"))?;
+    let result =
+        calibrate::scan::scan_centre(&mut scanner, params).map_err(|e| miette::miette!("{e}"))?;
     Ok((result, Some(truth)))
 }
 
 pub fn render_centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
     let mut out = format!(
         "rotation centre: arm_zero_offset {:+.4} mm (±{:.4}), arm_lateral_offset {:+.4} mm (±{:.4})\n",
-        r.arm_zero_offset, r.sigma_arm_zero_offset, r.arm_lateral_offset, r.sigma_arm_lateral_offset
+        r.arm_zero_offset,
+        r.sigma_arm_zero_offset,
+        r.arm_lateral_offset,
+        r.sigma_arm_lateral_offset
     );
     out += &format!(
         "  {} of {} magnets seen, {} pairs used; scan takes {:.0} s on the machine ({} sensor readings)\n",
@@ -136,7 +157,9 @@ pub fn render_centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
     );
     if let Some([dx, dy]) = truth {
         let error = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
-        out += &format!("  simulated truth: {dx:+.4}, {dy:+.4} mm; error of the estimate {error:.4} mm\n");
+        out += &format!(
+            "  simulated truth: {dx:+.4}, {dy:+.4} mm; error of the estimate {error:.4} mm\n"
+        );
     }
     out
 }
@@ -149,22 +172,46 @@ pub fn draw_magnet_map(r: &CentreResult, png: &Path) -> miette::Result<()> {
         r.arm_zero_offset, r.arm_lateral_offset
     ));
     if let Some(ring) = data.ring {
-        figure = figure.with_layer(Layer::Circle { centre: [ring.cx, ring.cy], radius: ring.r, colour: Rgb(120, 120, 120), width: 1.0 });
+        figure = figure.with_layer(Layer::Circle {
+            centre: [ring.cx, ring.cy],
+            radius: ring.r,
+            colour: Rgb(120, 120, 120),
+            width: 1.0,
+        });
     }
     let segments: Vec<[[f64; 2]; 2]> = data
         .points
         .iter()
         .zip(&data.residual_vectors)
-        .map(|(p, v)| [[p[0] - v[0], p[1] - v[1]], [p[0] - v[0] + 100.0 * v[0], p[1] - v[1] + 100.0 * v[1]]])
+        .map(|(p, v)| {
+            [
+                [p[0] - v[0], p[1] - v[1]],
+                [p[0] - v[0] + 100.0 * v[0], p[1] - v[1] + 100.0 * v[1]],
+            ]
+        })
         .collect();
     for segment in segments {
-        figure = figure.with_layer(Layer::Polyline { points: segment.to_vec(), colour: Rgb(200, 60, 40), width: 2.0 });
+        figure = figure.with_layer(Layer::Polyline {
+            points: segment.to_vec(),
+            colour: Rgb(200, 60, 40),
+            width: 2.0,
+        });
     }
     figure = figure
-        .with_layer(Layer::Points { points: data.points.clone(), colour: Rgb(30, 90, 200), radius_px: 4.0 })
-        .with_layer(Layer::Points { points: vec![data.rotation_centre], colour: Rgb(0, 0, 0), radius_px: 3.0 });
+        .with_layer(Layer::Points {
+            points: data.points.clone(),
+            colour: Rgb(30, 90, 200),
+            radius_px: 4.0,
+        })
+        .with_layer(Layer::Points {
+            points: vec![data.rotation_centre],
+            colour: Rgb(0, 0, 0),
+            radius_px: 3.0,
+        });
     figure.write_png(png).map_err(|e| miette::miette!("{e}"))?;
-    figure.write_svg(&png.with_extension("svg")).map_err(|e| miette::miette!("{e}"))?;
+    figure
+        .write_svg(&png.with_extension("svg"))
+        .map_err(|e| miette::miette!("{e}"))?;
     Ok(())
 }
 
@@ -172,11 +219,16 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
     let start = start_geometry(args.config.as_deref())?;
     let text = std::fs::read_to_string(&args.measurements)
         .map_err(|e| miette::miette!("cannot read {}: {e}", args.measurements.display()))?;
-    let data: Vec<Measurement> = scara::parse_measurements(&text, &args.measurements.display().to_string())
-        .map_err(|e| miette::miette!("{e}"))?;
+    let data: Vec<Measurement> =
+        scara::parse_measurements(&text, &args.measurements.display().to_string())
+            .map_err(|e| miette::miette!("{e}"))?;
     let fit = scara::identify(&data, &start).map_err(|e| miette::miette!("{e}"))?;
     let g = &fit.geometry;
-    println!("identified from {} measurements (residual RMS {:.4} mm):", data.len(), fit.rms);
+    crate::outln!(
+        "identified from {} measurements (residual RMS {:.4} mm):",
+        data.len(),
+        fit.rms
+    );
     let values = [
         g.link1_length,
         g.link2_length,
@@ -196,14 +248,23 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         fit.sigma[6],
     ];
     for ((name, v), s) in scara::PARAM_NAMES.iter().zip(values).zip(sigmas) {
-        println!("  {name:<16} {v:>12.5} ± {s:.5}");
+        crate::outln!("  {name:<16} {v:>12.5} ± {s:.5}");
     }
-    println!("  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)", 1.0 / g.elbow_coupling);
+    crate::outln!(
+        "  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)",
+        1.0 / g.elbow_coupling
+    );
     let id = &fit.identifiability;
-    println!("  condition number of the poses: {:.1}", id.condition_number);
+    crate::outln!(
+        "  condition number of the poses: {:.1}",
+        id.condition_number
+    );
     for combination in &id.unidentifiable {
-        let terms: Vec<String> = combination.iter().map(|(n, w)| format!("{w:+.2}·{n}")).collect();
-        println!("  not identifiable from these poses: {}", terms.join(" "));
+        let terms: Vec<String> = combination
+            .iter()
+            .map(|(n, w)| format!("{w:+.2}·{n}"))
+            .collect();
+        crate::outln!("  not identifiable from these poses: {}", terms.join(" "));
     }
     let json = serde_json::json!({
         "link1_length": g.link1_length, "link2_length": g.link2_length,
@@ -212,14 +273,20 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         "elbow_coupling": g.elbow_coupling, "sigma": fit.sigma.to_vec(), "rms_mm": fit.rms,
         "condition_number": id.condition_number,
     });
-    write_atomically(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?)).map_err(super::plain)?;
-    println!("  result written to {}", args.out.display());
+    write_atomically(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
+        .map_err(super::plain)?;
+    crate::outln!("  result written to {}", args.out.display());
     Ok(ExitCode::SUCCESS)
 }
 
 fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
     let g = start_geometry(args.config.as_deref())?;
-    let candidates = scara::pose_grid((-150f64.to_radians(), 150f64.to_radians()), (-150f64.to_radians(), 150f64.to_radians()), 25, 25);
+    let candidates = scara::pose_grid(
+        (-150f64.to_radians(), 150f64.to_radians()),
+        (-150f64.to_radians(), 150f64.to_radians()),
+        25,
+        25,
+    );
     let reachable: Vec<(f64, f64)> = candidates
         .into_iter()
         .filter(|&(a, b)| {
@@ -232,7 +299,7 @@ fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
     let text = scara::calibration_pattern_gcode(&g, &poses, &scara::PatternOptions::default());
     write_atomically(&args.out, |w| Ok(w.write_all(text.as_bytes())?)).map_err(super::plain)?;
     let id = scara::analyse_poses(&g, &poses);
-    println!(
+    crate::outln!(
         "{} crosses written to {} (condition number of the poses {:.1}); print it, measure each cross centre and \
          run `jointspace calibrate scara --measurements points.csv`",
         poses.len(),
@@ -263,9 +330,15 @@ fn start_geometry(config: Option<&Path>) -> miette::Result<ScaraGeometry> {
 }
 
 fn parse_pair(text: &str, flag: &str) -> miette::Result<[f64; 2]> {
-    let values: Vec<f64> = text.split(',').filter_map(|p| p.trim().parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
+    let values: Vec<f64> = text
+        .split(',')
+        .filter_map(|p| p.trim().parse::<f64>().ok())
+        .filter(|v| v.is_finite())
+        .collect();
     match values[..] {
         [a, b] if text.split(',').count() == 2 => Ok([a, b]),
-        _ => Err(miette::miette!("{flag} takes two numbers `a,b`, got `{text}`")),
+        _ => Err(miette::miette!(
+            "{flag} takes two numbers `a,b`, got `{text}`"
+        )),
     }
 }

@@ -3,7 +3,8 @@
 
 use crate::{diag, input, output};
 use convert::{
-    AngleUnit, AxisMap, CentreCorrection, ConvertOptions, Converter, Extrusion, FeedMode, Segmentation, Target,
+    AngleUnit, AxisMap, CentreCorrection, ConvertOptions, Converter, Extrusion, FeedMode,
+    Segmentation, Target,
 };
 use kinematics::MachineParams;
 use std::path::PathBuf;
@@ -90,7 +91,7 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     .map_err(|e| convert_error(&args, e))?;
     bar.finish_and_clear();
     if let Some(s) = stats {
-        println!(
+        crate::outln!(
             "{} → {}: {} moves as {} segments ({} centre turns, {} positioning moves)",
             name,
             args.out.display(),
@@ -107,8 +108,9 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
             .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
         let written = std::fs::read_to_string(&args.out)
             .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
-        let r = convert::verify(&map, &options, &commands, &written).map_err(|e| miette::miette!("{e}"))?;
-        println!("verification: {}", render_verify(&r));
+        let r = convert::verify(&map, &options, &commands, &written)
+            .map_err(|e| miette::miette!("{e}"))?;
+        crate::outln!("verification: {}", render_verify(&r));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -133,19 +135,39 @@ pub fn render_verify(r: &convert::VerifyReport) -> String {
 
 fn options(args: &Args) -> miette::Result<ConvertOptions> {
     if !(args.tolerance > 0.0 && args.tolerance.is_finite()) {
-        return Err(miette::miette!("--tolerance must be a positive number of mm"));
+        return Err(miette::miette!(
+            "--tolerance must be a positive number of mm"
+        ));
     }
     let mut options = ConvertOptions {
-        target: if args.to == To::Joints { Target::Joints } else { Target::Cylindrical },
+        target: if args.to == To::Joints {
+            Target::Joints
+        } else {
+            Target::Cylindrical
+        },
         segmentation: match args.fixed {
-            None => Segmentation::Adaptive { tolerance: args.tolerance },
+            None => Segmentation::Adaptive {
+                tolerance: args.tolerance,
+            },
             Some(Fixed::Marlin) => Segmentation::MARLIN,
             Some(Fixed::MarlinPolar) => Segmentation::MARLIN_POLAR,
             Some(Fixed::Rrf) => Segmentation::RRF,
         },
-        angle_unit: if args.radians { AngleUnit::Radians } else { AngleUnit::Degrees },
-        feed: if args.inverse_time { FeedMode::InverseTime } else { FeedMode::MotorSpace },
-        extrusion: if args.absolute_e { Extrusion::Absolute } else { Extrusion::Relative },
+        angle_unit: if args.radians {
+            AngleUnit::Radians
+        } else {
+            AngleUnit::Degrees
+        },
+        feed: if args.inverse_time {
+            FeedMode::InverseTime
+        } else {
+            FeedMode::MotorSpace
+        },
+        extrusion: if args.absolute_e {
+            Extrusion::Absolute
+        } else {
+            Extrusion::Relative
+        },
         ..ConvertOptions::default()
     };
     if let Some(letters) = &args.letters {
@@ -154,7 +176,11 @@ fn options(args: &Args) -> miette::Result<ConvertOptions> {
             [a, b] if a.is_ascii_alphabetic() && b.is_ascii_alphabetic() && a != b => {
                 options.axis_letters = Some([a.to_ascii_uppercase(), b.to_ascii_uppercase()]);
             }
-            _ => return Err(miette::miette!("--letters takes two different letters, e.g. RT")),
+            _ => {
+                return Err(miette::miette!(
+                    "--letters takes two different letters, e.g. RT"
+                ));
+            }
         }
     }
     Ok(options)
@@ -167,20 +193,31 @@ fn axis_map(args: &Args, params: &MachineParams) -> miette::Result<AxisMap> {
     match (params, correction, args.to) {
         (MachineParams::Polar(p), Some(c), To::Cartesian) => c.cartesian_map(p).map_err(fail),
         (MachineParams::Polar(p), Some(c), to) => {
-            let target = if to == To::Joints { Target::Joints } else { Target::Cylindrical };
+            let target = if to == To::Joints {
+                Target::Joints
+            } else {
+                Target::Cylindrical
+            };
             c.motor_map(p, target).map_err(fail)
         }
         (MachineParams::Polar(p), None, To::Cartesian) => {
-            let c = CentreCorrection { arm_zero_offset: p.arm_zero_offset, arm_lateral_offset: p.arm_lateral_offset };
+            let c = CentreCorrection {
+                arm_zero_offset: p.arm_zero_offset,
+                arm_lateral_offset: p.arm_lateral_offset,
+            };
             c.cartesian_map(p).map_err(fail)
         }
-        (_, Some(_), _) | (_, None, To::Cartesian) => {
-            Err(miette::miette!("centre correction and --to cartesian need a polar machine"))
-        }
+        (_, Some(_), _) | (_, None, To::Cartesian) => Err(miette::miette!(
+            "centre correction and --to cartesian need a polar machine"
+        )),
         (params, None, to) => {
             let kin: Arc<dyn kinematics::Kinematics> =
                 Arc::from(kinematics::build(params).map_err(|e| miette::miette!("{e}"))?);
-            let target = if to == To::Joints { Target::Joints } else { Target::Cylindrical };
+            let target = if to == To::Joints {
+                Target::Joints
+            } else {
+                Target::Cylindrical
+            };
             AxisMap::motors(kin, target).map_err(fail)
         }
     }
@@ -189,11 +226,20 @@ fn axis_map(args: &Args, params: &MachineParams) -> miette::Result<AxisMap> {
 fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
     if let Some(text) = &args.centre_offset {
         let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-        let numbers: Vec<f64> = parts.iter().filter_map(|p| p.parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
+        let numbers: Vec<f64> = parts
+            .iter()
+            .filter_map(|p| p.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .collect();
         if parts.len() != 2 || numbers.len() != 2 {
-            return Err(miette::miette!("--centre-offset takes two numbers `dx,dy` in mm, got `{text}`"));
+            return Err(miette::miette!(
+                "--centre-offset takes two numbers `dx,dy` in mm, got `{text}`"
+            ));
         }
-        return Ok(Some(CentreCorrection { arm_zero_offset: numbers[0], arm_lateral_offset: numbers[1] }));
+        return Ok(Some(CentreCorrection {
+            arm_zero_offset: numbers[0],
+            arm_lateral_offset: numbers[1],
+        }));
     }
     if let Some(path) = &args.calibration {
         let result = calibrate::scan::CentreResult::read_json(path)
@@ -211,11 +257,23 @@ fn convert_error(args: &Args, e: anyhow::Error) -> miette::Report {
     use convert::ConvertError as E;
     match e.downcast::<E>() {
         Ok(E::Gcode(e)) => miette::Report::new(diag::gcode_error(&e)),
-        Ok(other @ (E::Unreachable { span, .. } | E::Unsupported { span, .. } | E::NoConvergence { span, .. })) => {
+        Ok(
+            other @ (E::Unreachable { span, .. }
+            | E::Unsupported { span, .. }
+            | E::NoConvergence { span, .. }),
+        ) => {
             // The error's text starts with its own `line l:c:`; the diagnostic names file, line and column.
             let text = other.to_string();
-            let message = text.split_once(": ").map_or(text.as_str(), |(_, rest)| rest).to_string();
-            miette::Report::new(diag::at_gcode_line(&args.file, span, message, "here".into()))
+            let message = text
+                .split_once(": ")
+                .map_or(text.as_str(), |(_, rest)| rest)
+                .to_string();
+            miette::Report::new(diag::at_gcode_line(
+                &args.file,
+                span,
+                message,
+                "here".into(),
+            ))
         }
         Ok(other) => miette::miette!("{}: {other}", args.file.display()),
         Err(e) => super::plain(e),

@@ -50,20 +50,23 @@ const EXAMPLES: [Example; 3] = [
 
 pub fn run(args: Args) -> miette::Result<ExitCode> {
     let out = &args.out;
-    std::fs::create_dir_all(out).map_err(|e| miette::miette!("cannot create {}: {e}", out.display()))?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| miette::miette!("cannot create {}: {e}", out.display()))?;
     let mut report = String::from("jointspace demo: bundled machines and test prints\n\n");
     for example in &EXAMPLES {
         let section = demo_machine(example, out)?;
-        print!("{section}");
+        crate::out!("{section}");
         report += &section;
     }
     for section in [demo_calibration(out)?, demo_simulation(out)?] {
-        print!("{section}");
+        crate::out!("{section}");
         report += &section;
     }
-    write_atomically(&out.join("report.txt"), |w| Ok(w.write_all(report.as_bytes())?))
-        .map_err(super::plain)?;
-    println!("report and pictures in {}", out.display());
+    write_atomically(&out.join("report.txt"), |w| {
+        Ok(w.write_all(report.as_bytes())?)
+    })
+    .map_err(super::plain)?;
+    crate::outln!("report and pictures in {}", out.display());
     Ok(ExitCode::SUCCESS)
 }
 
@@ -73,12 +76,19 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     let config_path = dir.join("printer.cfg");
     let print_path = dir.join("test-print.gcode");
     let gcode = TestPrint::new(example.print_centre, example.print_size).gcode();
-    write_atomically(&config_path, |w| Ok(w.write_all(example.config.as_bytes())?)).map_err(super::plain)?;
+    write_atomically(
+        &config_path,
+        |w| Ok(w.write_all(example.config.as_bytes())?),
+    )
+    .map_err(super::plain)?;
     write_atomically(&print_path, |w| Ok(w.write_all(gcode.as_bytes())?)).map_err(super::plain)?;
 
     let (machine, setup) = run::load_machine(&config_path)?;
     let mut section = format!("== {} printer ({})\n", example.name, config_path.display());
-    let options = run::RunOptions { clock_hz: 16e6, ..Default::default() };
+    let options = run::RunOptions {
+        clock_hz: 16e6,
+        ..Default::default()
+    };
     let summary = run::execute(
         &machine,
         setup,
@@ -109,20 +119,27 @@ fn demo_conversion(
     dir: &Path,
     target: convert::Target,
 ) -> miette::Result<String> {
-    let kin: std::sync::Arc<dyn kinematics::Kinematics> =
-        std::sync::Arc::from(kinematics::build(&machine.params).map_err(|e| miette::miette!("{e}"))?);
+    let kin: std::sync::Arc<dyn kinematics::Kinematics> = std::sync::Arc::from(
+        kinematics::build(&machine.params).map_err(|e| miette::miette!("{e}"))?,
+    );
     let map = convert::AxisMap::motors(kin, target).map_err(|e| miette::miette!("{e}"))?;
-    let options = convert::ConvertOptions { target, ..Default::default() };
+    let options = convert::ConvertOptions {
+        target,
+        ..Default::default()
+    };
     let name = print_path.display().to_string();
-    let mut converter =
-        convert::Converter::new(map.clone(), options.clone(), Vec::new()).map_err(|e| miette::miette!("{e}"))?;
-    convert::convert_gcode(gcode.as_bytes(), &name, &mut converter).map_err(|e| miette::miette!("{e}"))?;
+    let mut converter = convert::Converter::new(map.clone(), options.clone(), Vec::new())
+        .map_err(|e| miette::miette!("{e}"))?;
+    convert::convert_gcode(gcode.as_bytes(), &name, &mut converter)
+        .map_err(|e| miette::miette!("{e}"))?;
     let (written, stats) = converter.finish().map_err(|e| miette::miette!("{e}"))?;
     let written = String::from_utf8(written).map_err(|e| miette::miette!("{e}"))?;
     let out_path = dir.join("test-print-converted.gcode");
     write_atomically(&out_path, |w| Ok(w.write_all(written.as_bytes())?)).map_err(super::plain)?;
-    let commands = convert::read_commands(gcode.as_bytes(), &name).map_err(|e| miette::miette!("{e}"))?;
-    let report = convert::verify(&map, &options, &commands, &written).map_err(|e| miette::miette!("{e}"))?;
+    let commands =
+        convert::read_commands(gcode.as_bytes(), &name).map_err(|e| miette::miette!("{e}"))?;
+    let report =
+        convert::verify(&map, &options, &commands, &written).map_err(|e| miette::miette!("{e}"))?;
     Ok(format!(
         "conversion for firmware without {} kinematics ({}): {} moves → {} segments\n  {}\n",
         machine.kinematics.name(),
@@ -147,7 +164,9 @@ fn demo_calibration(out: &Path) -> miette::Result<String> {
     };
     std::fs::create_dir_all(out.join("calibration")).map_err(|e| miette::miette!("{e}"))?;
     let (result, truth) = calibrate::simulate_scan(&args, &calibrate::scan_params(&args))?;
-    result.write_json(&args.out).map_err(|e| miette::miette!("{e}"))?;
+    result
+        .write_json(&args.out)
+        .map_err(|e| miette::miette!("{e}"))?;
     if let Some(png) = &args.plot {
         calibrate::draw_magnet_map(&result, png)?;
     }
@@ -160,14 +179,23 @@ fn demo_calibration(out: &Path) -> miette::Result<String> {
 
 /// The virtual printer: what an assembly error does to a print, and the print after calibration and correction.
 fn demo_simulation(out: &Path) -> miette::Result<String> {
-    let mut section = String::from("== simulation: assembly errors, before and after calibration\n");
+    let mut section =
+        String::from("== simulation: assembly errors, before and after calibration\n");
     let polar_dir = out.join("simulation-polar");
-    let polar = sim::scenario::polar_lateral_offset_demo(&polar_dir).map_err(|e| miette::miette!("{e}"))?;
-    section += &format!("-- polar printer whose arm passes 1 mm beside the bed centre ({})\n", polar_dir.display());
+    let polar =
+        sim::scenario::polar_lateral_offset_demo(&polar_dir).map_err(|e| miette::miette!("{e}"))?;
+    section += &format!(
+        "-- polar printer whose arm passes 1 mm beside the bed centre ({})\n",
+        polar_dir.display()
+    );
     section += &polar.text();
     let scara_dir = out.join("simulation-scara");
-    let scara = sim::scenario::scara_coupling_demo(&scara_dir).map_err(|e| miette::miette!("{e}"))?;
-    section += &format!("-- SCARA built with ECR 3.2 and a 0.5 mm longer arm, configured as ECR 3 ({})\n", scara_dir.display());
+    let scara =
+        sim::scenario::scara_coupling_demo(&scara_dir).map_err(|e| miette::miette!("{e}"))?;
+    section += &format!(
+        "-- SCARA built with ECR 3.2 and a 0.5 mm longer arm, configured as ECR 3 ({})\n",
+        scara_dir.display()
+    );
     section += &scara.text();
     section += &format!(
         "before/after pictures: {} and {}\n\n",

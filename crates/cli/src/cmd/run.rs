@@ -49,7 +49,8 @@ pub struct CheckArgs {
 
 /// Load `printer.cfg` and build the machine, with diagnostics pointing into the file.
 pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, MachineSetup)> {
-    let machine = config::MachineConfig::load(path).map_err(|e| miette::Report::new(diag::config_error(&e)))?;
+    let machine = config::MachineConfig::load(path)
+        .map_err(|e| miette::Report::new(diag::config_error(&e)))?;
     let setup = MachineSetup::from_config(&machine)
         .map_err(|e| miette::miette!("{}: {e}", path.display()))?;
     Ok((machine, setup))
@@ -146,16 +147,26 @@ pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
         klipper_batch: args.klipper_batch,
     };
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
-    let result = execute(&machine, setup, reader, &name, &args.config.display().to_string(), &options);
+    let result = execute(
+        &machine,
+        setup,
+        reader,
+        &name,
+        &args.config.display().to_string(),
+        &options,
+    );
     bar.finish_and_clear();
     let report = result.map_err(|e| match e {
         ExecuteError::Pipeline(e) => pipeline_error(&args.file, e),
         ExecuteError::Other(report) => report,
     })?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?);
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?
+        );
     } else {
-        print!("{}", render(&report));
+        crate::out!("{}", render(&report));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -199,31 +210,40 @@ pub fn execute(
         .collect();
     let step_dir = options.steps.as_deref();
     if let Some(dir) = step_dir {
-        std::fs::create_dir_all(dir).map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     }
     let mut sinks = Vec::with_capacity(motor_names.len());
     for name in &motor_names {
         let file = match step_dir {
             Some(dir) => Some(
-                StepFileWriter::create(dir.join(format!("{name}.txt"))).map_err(|e| miette::miette!("{e}"))?,
+                StepFileWriter::create(dir.join(format!("{name}.txt")))
+                    .map_err(|e| miette::miette!("{e}"))?,
             ),
             None => None,
         };
-        sinks.push(MotorSink { stats: StepStats::new(options.clock_hz), file });
+        sinks.push(MotorSink {
+            stats: StepStats::new(options.clock_hz),
+            file,
+        });
     }
-    let config = StepGenConfig { clock_hz: options.clock_hz, ..StepGenConfig::default() };
+    let config = StepGenConfig {
+        clock_hz: options.clock_hz,
+        ..StepGenConfig::default()
+    };
     let csv = match &options.moves {
         Some(path) => Some(CsvFile::create(path)?),
         None => None,
     };
     // Planning on this thread, stepping on another: they overlap chunk by chunk.
     let kinematics = setup.kinematics.as_ref();
-    let (planned, sinks, filtered) = stepgen::run_in_parallel(kinematics, extruder, config, sinks, |sender| {
-        // The sender is dropped here, which tells the stepping thread that planning is over.
-        plan_gcode(&setup, input, name, ((sender, MoveCounter::default()), csv))
-            .map(|(((_sender, counter), csv), summary)| (counter, csv, summary))
-    })
-    .map_err(|e| miette::miette!("step generation failed: {e}"))?;
+    let (planned, sinks, filtered) =
+        stepgen::run_in_parallel(kinematics, extruder, config, sinks, |sender| {
+            // The sender is dropped here, which tells the stepping thread that planning is over.
+            plan_gcode(&setup, input, name, ((sender, MoveCounter::default()), csv))
+                .map(|(((_sender, counter), csv), summary)| (counter, csv, summary))
+        })
+        .map_err(|e| miette::miette!("step generation failed: {e}"))?;
     let (counter, csv, summary) = planned.map_err(ExecuteError::Pipeline)?;
     if let Some(csv) = csv {
         csv.finish()?;
@@ -234,13 +254,19 @@ pub fn execute(
             file.finish().map_err(|e| miette::miette!("{e}"))?;
         }
         let stats: MotorStats = sink.stats.summary(options.clock_hz, filtered_pairs);
-        let limit = machine.stepper(name).and_then(|s| s.max_step_rate).or(machine.limits.max_step_rate);
+        let limit = machine
+            .stepper(name)
+            .and_then(|s| s.max_step_rate)
+            .or(machine.limits.max_step_rate);
         motors.push(MotorSummary {
             name: name.clone(),
             steps: stats.steps,
             net_steps: stats.net_steps,
             min_interval_ticks: stats.min_interval_ticks,
-            peak_rate_min_interval: stats.peak_rate_min_interval.is_finite().then_some(stats.peak_rate_min_interval),
+            peak_rate_min_interval: stats
+                .peak_rate_min_interval
+                .is_finite()
+                .then_some(stats.peak_rate_min_interval),
             peak_rate_1ms: stats.peak_rate_1ms,
             filtered_pairs,
             over_max_step_rate: limit.filter(|l| stats.peak_rate_1ms > *l),
@@ -249,11 +275,15 @@ pub fn execute(
     let mut warnings: Vec<WarningLine> = summary
         .warnings
         .iter()
-        .map(|w| WarningLine { line: w.span.line, column: w.span.column, message: w.message.clone() })
+        .map(|w| WarningLine {
+            line: w.span.line,
+            column: w.span.column,
+            message: w.message.clone(),
+        })
         .chain(summary.gcode_warnings.iter().map(|w| WarningLine {
             line: w.span.line,
             column: w.span.column,
-            message: w.to_string(),
+            message: w.message.clone(),
         }))
         .collect();
     warnings.sort_by_key(|w| (w.line, w.column));
@@ -282,30 +312,50 @@ pub fn render(r: &RunSummary) -> String {
         ((total % 3600.0) / 60.0) as u64,
         (total % 60.0) as u64
     );
-    out += &format!("  moves        {} toolhead, {} extruder\n", r.toolhead_moves, r.extruder_moves);
-    out += &format!("  steps        {} in all, computed in {:.3} s\n", r.total_steps, r.wall_time_s);
+    out += &format!(
+        "  moves        {} toolhead, {} extruder\n",
+        r.toolhead_moves, r.extruder_moves
+    );
+    out += &format!(
+        "  steps        {} in all, computed in {:.3} s\n",
+        r.total_steps, r.wall_time_s
+    );
     out += "  motor             steps        net   peak rate (1 ms)   min interval\n";
     for m in &r.motors {
-        let interval = m.min_interval_ticks.map_or("-".to_string(), |t| format!("{t} ticks"));
+        let interval = m
+            .min_interval_ticks
+            .map_or("-".to_string(), |t| format!("{t} ticks"));
         out += &format!(
             "  {:<14} {:>9} {:>10} {:>12.0} steps/s   {:>12}\n",
             m.name, m.steps, m.net_steps, m.peak_rate_1ms, interval
         );
         if let Some(limit) = m.over_max_step_rate {
-            out += &format!("    warning: {} exceeds its max_step_rate of {limit:.0} steps/s\n", m.name);
+            out += &format!(
+                "    warning: {} exceeds its max_step_rate of {limit:.0} steps/s\n",
+                m.name
+            );
         }
         if m.filtered_pairs > 0 {
-            out += &format!("    {} step pairs removed by the step+dir+step filter\n", m.filtered_pairs);
+            out += &format!(
+                "    {} step pairs removed by the step+dir+step filter\n",
+                m.filtered_pairs
+            );
         }
     }
     if r.slowed_moves > 0 {
-        out += &format!("  {} moves slowed below 25% of their requested speed by machine limits\n", r.slowed_moves);
+        out += &format!(
+            "  {} moves slowed below 25% of their requested speed by machine limits\n",
+            r.slowed_moves
+        );
     }
     for w in r.warnings.iter().take(20) {
         out += &format!("  warning: line {}:{}: {}\n", w.line, w.column, w.message);
     }
     if r.warnings.len() > 20 {
-        out += &format!("  … and {} more warnings (see --json)\n", r.warnings.len() - 20);
+        out += &format!(
+            "  … and {} more warnings (see --json)\n",
+            r.warnings.len() - 20
+        );
     }
     out
 }
@@ -325,12 +375,16 @@ impl CsvFile {
         };
         let temp = tempfile::NamedTempFile::new_in(dir)
             .map_err(|e| miette::miette!("cannot write {}: {e}", path.display()))?;
-        Ok(CsvFile { sink: motion::csv::CsvSink::new(std::io::BufWriter::new(temp)), path: path.to_path_buf() })
+        Ok(CsvFile {
+            sink: motion::csv::CsvSink::new(std::io::BufWriter::new(temp)),
+            path: path.to_path_buf(),
+        })
     }
 
     fn finish(self) -> miette::Result<()> {
         let path = self.path;
-        let fail = |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
+        let fail =
+            |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
         let writer = self.sink.finish().map_err(|e| fail(&e))?;
         let temp = writer.into_inner().map_err(|e| fail(&e))?;
         temp.persist(&path).map_err(|e| fail(&e))?;
@@ -348,9 +402,12 @@ impl trapq::MoveSink for CsvFile {
 pub fn pipeline_error(file: &Path, e: motion::machine::PipelineError) -> miette::Report {
     match e {
         motion::machine::PipelineError::Gcode(e) => miette::Report::new(diag::gcode_error(&e)),
-        motion::machine::PipelineError::Plan(e) => {
-            miette::Report::new(diag::at_gcode_line(file, e.span, e.kind.to_string(), "this move".into()))
-        }
+        motion::machine::PipelineError::Plan(e) => miette::Report::new(diag::at_gcode_line(
+            file,
+            e.span,
+            e.kind.to_string(),
+            "this move".into(),
+        )),
     }
 }
 
@@ -364,14 +421,23 @@ pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
             Severity::Error => "error",
             Severity::Warning => "warning",
         };
-        println!("{name}:{}:{}: {label}: {}", p.span.line, p.span.column, p.message);
+        crate::outln!(
+            "{name}:{}:{}: {label}: {}",
+            p.span.line,
+            p.span.column,
+            p.message
+        );
     }
     let errors = report.errors();
-    println!(
+    crate::outln!(
         "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
         report.problems.len() - errors,
         report.end_time,
         report.slow_moves
     );
-    Ok(if errors > 0 { ExitCode::FAILURE } else { ExitCode::SUCCESS })
+    Ok(if errors > 0 {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
 }

@@ -15,13 +15,14 @@ pub struct Args {
 
 pub fn run(args: Args) -> miette::Result<ExitCode> {
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
-    let stats = gcode::file_stats(reader, name.as_str()).map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
+    let stats = gcode::file_stats(reader, name.as_str())
+        .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
     bar.finish_and_clear();
     if args.json {
         let text = serde_json::to_string_pretty(&stats).map_err(|e| miette::miette!("{e}"))?;
-        println!("{text}");
+        crate::outln!("{text}");
     } else {
-        print!("{}", render(&name, &stats));
+        crate::out!("{}", render(&name, &stats));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -30,7 +31,10 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
 pub fn render(name: &str, s: &gcode::Stats) -> String {
     let mut out = format!("{name}\n");
     out += &format!("  lines            {}\n", s.lines);
-    out += &format!("  moves            {} straight, {} arcs, {} extruding\n", s.moves, s.arcs, s.extruding_moves);
+    out += &format!(
+        "  moves            {} straight, {} arcs, {} extruding\n",
+        s.moves, s.arcs, s.extruding_moves
+    );
     out += &format!(
         "  filament         {:.3} mm pushed, {:.3} mm retracted\n",
         s.total_extrusion, s.total_retraction
@@ -49,7 +53,11 @@ pub fn render(name: &str, s: &gcode::Stats) -> String {
     }
     let mut commands: Vec<(&String, &u64)> = s.commands.iter().collect();
     commands.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
-    let listed: Vec<String> = commands.iter().take(12).map(|(k, v)| format!("{k}×{v}")).collect();
+    let listed: Vec<String> = commands
+        .iter()
+        .take(12)
+        .map(|(k, v)| format!("{k}×{v}"))
+        .collect();
     out += &format!("  commands         {}\n", listed.join(" "));
     if s.warnings > 0 {
         out += &format!("  warnings         {}\n", s.warnings);

@@ -22,13 +22,24 @@ pub struct Args {
     pub json: bool,
 }
 
+/// The finest and coarsest resolution of one motor (or the machine's worst direction), with where they are.
+#[derive(Debug, Clone, Serialize)]
+pub struct ResolutionRange {
+    pub name: String,
+    /// mm of nozzle travel per step.
+    pub finest: f64,
+    pub finest_at: [f64; 2],
+    pub coarsest: f64,
+    pub coarsest_at: [f64; 2],
+}
+
 /// The numbers a builder compares machines by.
 #[derive(Debug, Clone, Serialize)]
 pub struct WorkspaceFigures {
     pub machine: String,
     pub reachable_area_mm2: f64,
-    /// Per motor and for the machine's worst direction: (name, best mm/step, where, worst mm/step, where).
-    pub resolution: Vec<(String, f64, [f64; 2], f64, [f64; 2])>,
+    /// Per motor, then for the machine's worst direction.
+    pub resolution: Vec<ResolutionRange>,
     pub pictures: Vec<String>,
 }
 
@@ -39,9 +50,12 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     }
     let figures = map_and_draw(&machine.params, args.cell, &args.out, "workspace")?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&figures).map_err(|e| miette::miette!("{e}"))?);
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&figures).map_err(|e| miette::miette!("{e}"))?
+        );
     } else {
-        print!("{}", render(&figures));
+        crate::out!("{}", render(&figures));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -54,17 +68,25 @@ pub fn map_and_draw(
     stem: &str,
 ) -> miette::Result<WorkspaceFigures> {
     let map = workspace::map_machine(params, cell_mm, 0.0).map_err(|e| miette::miette!("{e}"))?;
-    std::fs::create_dir_all(dir).map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     let written = plot::workspace::write_workspace_maps(&workspace_data(&map), dir, stem)
         .map_err(|e| miette::miette!("{e}"))?;
-    let mut resolution = Vec::new();
-    for (name, range) in map.motor_names.iter().zip(map.summary.per_motor.iter()) {
-        if let Some(r) = range {
-            resolution.push((name.clone(), r.min.value, r.min.at, r.max.value, r.max.at));
-        }
-    }
+    let range = |name: &str, r: &workspace::Range| ResolutionRange {
+        name: name.to_string(),
+        finest: r.min.value,
+        finest_at: r.min.at,
+        coarsest: r.max.value,
+        coarsest_at: r.max.at,
+    };
+    let mut resolution: Vec<ResolutionRange> = map
+        .motor_names
+        .iter()
+        .zip(map.summary.per_motor.iter())
+        .filter_map(|(name, r)| r.as_ref().map(|r| range(name, r)))
+        .collect();
     if let Some(r) = &map.summary.machine {
-        resolution.push(("worst direction".into(), r.min.value, r.min.at, r.max.value, r.max.at));
+        resolution.push(range("worst direction", r));
     }
     Ok(WorkspaceFigures {
         machine: map.machine.to_string(),
@@ -75,15 +97,27 @@ pub fn map_and_draw(
 }
 
 pub fn render(f: &WorkspaceFigures) -> String {
-    let mut out = format!("{} workspace: {:.0} mm² reachable\n", f.machine, f.reachable_area_mm2);
+    let mut out = format!(
+        "{} workspace: {:.0} mm² reachable\n",
+        f.machine, f.reachable_area_mm2
+    );
     out += "  mm of nozzle travel per step   finest   at            coarsest   at\n";
-    for (name, best, best_at, worst, worst_at) in &f.resolution {
+    for r in &f.resolution {
         out += &format!(
             "  {:<28} {:>8.4}   ({:>5.0},{:>5.0})   {:>8.4}   ({:>5.0},{:>5.0})\n",
-            name, best, best_at[0], best_at[1], worst, worst_at[0], worst_at[1]
+            r.name,
+            r.finest,
+            r.finest_at[0],
+            r.finest_at[1],
+            r.coarsest,
+            r.coarsest_at[0],
+            r.coarsest_at[1]
         );
     }
-    out += &format!("  {} pictures written (reach, per-motor and worst-direction maps)\n", f.pictures.len());
+    out += &format!(
+        "  {} pictures written (reach, per-motor and worst-direction maps)\n",
+        f.pictures.len()
+    );
     out
 }
 
@@ -96,7 +130,10 @@ fn workspace_data(map: &WorkspaceMap) -> WorkspaceData {
         .enumerate()
         .map(|(i, name)| ResolutionLayer {
             name: name.clone(),
-            title: format!("{}: {name} resolution (mm of nozzle travel per step)", map.machine),
+            title: format!(
+                "{}: {name} resolution (mm of nozzle travel per step)",
+                map.machine
+            ),
             values: map.resolution_values(ResolutionKind::Motor(i)),
         })
         .collect();

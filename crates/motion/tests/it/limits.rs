@@ -35,10 +35,16 @@ fn plan_and_step(config: &str, gcode: &str) -> (Vec<TrapezoidMove>, Vec<Vec<Step
     let _ = plan_gcode(&setup, gcode.as_bytes(), "test.gcode", sink).expect("plans");
     let pieces: Vec<Piece> = moves.iter().flat_map(|m| m.pieces()).collect();
     let start = pieces.first().expect("moves").start_pos;
-    let config = StepGenConfig { clock_hz: CLOCK_HZ, ..StepGenConfig::default() };
-    let mut generator = StepGenerator::new(setup.kinematics.as_ref(), start, None, config).expect("starts");
+    let config = StepGenConfig {
+        clock_hz: CLOCK_HZ,
+        ..StepGenConfig::default()
+    };
+    let mut generator =
+        StepGenerator::new(setup.kinematics.as_ref(), start, None, config).expect("starts");
     let mut sinks: Vec<Vec<Step>> = vec![Vec::new(); setup.kinematics.motors().len()];
-    generator.run_chunk(&pieces, &[], &mut sinks).expect("steps");
+    generator
+        .run_chunk(&pieces, &[], &mut sinks)
+        .expect("steps");
     generator.finish(&mut sinks).expect("finishes");
     (moves, sinks)
 }
@@ -63,7 +69,10 @@ fn peak_rates(steps: &[Step], step_dist: f64) -> (f64, f64) {
     while i + w < t.len() {
         // Only windows without a direction change.
         if steps[i..=i + w].iter().all(|s| s.dir == steps[i].dir) {
-            omegas.push(((t[i] + t[i + w]) / 2.0, w as f64 * step_dist / (t[i + w] - t[i])));
+            omegas.push((
+                (t[i] + t[i + w]) / 2.0,
+                w as f64 * step_dist / (t[i + w] - t[i]),
+            ));
         }
         i += w;
     }
@@ -89,13 +98,22 @@ fn bed_speed_and_acceleration_stay_within_limits_near_the_centre() {
             let (moves, steps) = pass(offset, speed);
             assert!(!steps.is_empty());
             let (omega, alpha) = peak_rates(&steps, step_dist);
-            assert!(omega <= MAX_OMEGA * 1.01, "offset {offset} speed {speed}: bed at {omega} rad/s");
-            assert!(alpha <= MAX_ALPHA * 1.01, "offset {offset} speed {speed}: bed at {alpha} rad/s²");
+            assert!(
+                omega <= MAX_OMEGA * 1.01,
+                "offset {offset} speed {speed}: bed at {omega} rad/s"
+            );
+            assert!(
+                alpha <= MAX_ALPHA * 1.01,
+                "offset {offset} speed {speed}: bed at {alpha} rad/s²"
+            );
             let ours: f64 = moves.iter().map(|m| m.duration()).sum();
             let klipper = klipper_time(200.0, speed, offset);
             if klipper > 200.0 / speed * 1.001 {
                 // Klipper slows this move; ours must take at most a fifth of its time.
-                assert!(ours <= klipper / 5.0, "offset {offset} speed {speed}: {ours} s vs Klipper {klipper} s");
+                assert!(
+                    ours <= klipper / 5.0,
+                    "offset {offset} speed {speed}: {ours} s vs Klipper {klipper} s"
+                );
             }
             eprintln!(
                 "offset {offset:>5} mm, {speed:>3} mm/s: {} spans, {ours:.3} s (Klipper {klipper:.3} s), peak {omega:.3} rad/s, {alpha:.1} rad/s²",
@@ -113,7 +131,10 @@ fn a_move_through_the_exact_centre_stops_turns_the_bed_and_completes() {
         let turns: Vec<&TrapezoidMove> = moves.iter().filter(|m| m.axes_r == [0.0; 3]).collect();
         assert_eq!(turns.len(), 1, "one turn in place");
         // The toolhead arrives at rest and leaves from rest.
-        let i = moves.iter().position(|m| m.axes_r == [0.0; 3]).expect("turn");
+        let i = moves
+            .iter()
+            .position(|m| m.axes_r == [0.0; 3])
+            .expect("turn");
         let before = &moves[i - 1];
         assert!((before.cruise_v - before.accel * before.decel_t).abs() < 1e-9);
         assert_eq!(moves[i + 1].start_v, 0.0);
@@ -121,9 +142,14 @@ fn a_move_through_the_exact_centre_stops_turns_the_bed_and_completes() {
         let net: i64 = steps.iter().map(|s| if s.dir { 1 } else { -1 }).sum();
         assert_eq!(net.abs(), 8000, "net bed steps");
         let (omega, alpha) = peak_rates(&steps, step_dist);
-        assert!(omega <= MAX_OMEGA * 1.01 && alpha <= MAX_ALPHA * 1.01, "{omega} rad/s, {alpha} rad/s²");
+        assert!(
+            omega <= MAX_OMEGA * 1.01 && alpha <= MAX_ALPHA * 1.01,
+            "{omega} rad/s, {alpha} rad/s²"
+        );
         let total: f64 = moves.iter().map(|m| m.duration()).sum();
-        eprintln!("exact centre at {speed} mm/s: {total:.3} s, bed peak {omega:.3} rad/s, {alpha:.1} rad/s²");
+        eprintln!(
+            "exact centre at {speed} mm/s: {total:.3} s, bed peak {omega:.3} rad/s, {alpha:.1} rad/s²"
+        );
     }
 }
 
@@ -159,21 +185,33 @@ fn scara_joint_speed_and_acceleration_stay_within_limits_near_full_reach() {
         let (w, a) = peak_rates(motor_steps, step_dist);
         assert!(w <= max_w * 1.01, "{name}: {w} rad/s");
         assert!(a <= max_a * 1.01, "{name}: {a} rad/s²");
-        eprintln!("scara {name}: peak {w:.3} rad/s, {a:.1} rad/s², {} spans", moves.len());
+        eprintln!(
+            "scara {name}: peak {w:.3} rad/s, {a:.1} rad/s², {} spans",
+            moves.len()
+        );
     }
 }
 
 #[test]
 fn step_rate_limit_holds_on_every_motor() {
     let limit = 20000.0;
-    let config = polar_config()
-        .replace("max_angular_velocity: 5\nmax_angular_accel: 200\n", &format!("max_step_rate: {limit}\n"));
-    let gcode = "SET_KINEMATIC_POSITION X=100 Y=0.5 Z=1\nG1 X-100 Y0.5 F18000\nG1 X-100 Y-80 Z2 F18000\n";
+    let config = polar_config().replace(
+        "max_angular_velocity: 5\nmax_angular_accel: 200\n",
+        &format!("max_step_rate: {limit}\n"),
+    );
+    let gcode =
+        "SET_KINEMATIC_POSITION X=100 Y=0.5 Z=1\nG1 X-100 Y0.5 F18000\nG1 X-100 Y-80 Z2 F18000\n";
     let (_, steps) = plan_and_step(&config, gcode);
     for motor_steps in &steps {
-        let t: Vec<f64> = motor_steps.iter().map(|s| s.clock as f64 / CLOCK_HZ).collect();
+        let t: Vec<f64> = motor_steps
+            .iter()
+            .map(|s| s.clock as f64 / CLOCK_HZ)
+            .collect();
         let w = 16;
-        let peak = t.windows(w + 1).map(|x| w as f64 / (x[w] - x[0])).fold(0.0, f64::max);
+        let peak = t
+            .windows(w + 1)
+            .map(|x| w as f64 / (x[w] - x[0]))
+            .fold(0.0, f64::max);
         assert!(peak <= limit * 1.01, "{peak} steps/s");
     }
 }

@@ -40,32 +40,7 @@ fn machine() -> &'static config::MachineConfig {
     })
 }
 
-/// Chords an arc may have before this target skips the input. `motion::arcs::split_arc` expands a whole
-/// arc into a `Vec` before planning, so a huge radius or a huge helical Z travel aborts on allocation: a
-/// known, reported finding (kept in `crates/cli/tests/fuzz_regressions/pipeline-oom-*.gcode`). Remove this
-/// filter once arcs are streamed.
-const MAX_ARC_CHORDS: f64 = 1e6;
-
-/// Whether any arc of `data` would be expanded into more than [`MAX_ARC_CHORDS`] 1 mm chords.
-fn has_huge_arc(data: &[u8]) -> bool {
-    gcode::Commands::from_reader(data, "fuzz.gcode").any(|c| match c {
-        Ok(c) => match c.value {
-            gcode::Command::Arc(arc) => {
-                let radius = arc.offset[0].hypot(arc.offset[1]);
-                let flat = radius * std::f64::consts::TAU * (f64::from(arc.turns) + 1.0);
-                let helix = (arc.target[2] - arc.start[2]).abs();
-                !(flat.hypot(helix) <= MAX_ARC_CHORDS)
-            }
-            _ => false,
-        },
-        Err(_) => false,
-    })
-}
-
 fuzz_target!(|data: &[u8]| {
-    if has_huge_arc(data) {
-        return;
-    }
     let machine = machine();
     let setup = MachineSetup::from_config(machine).expect("example machine builds");
     let extruder = machine.extruder.as_ref().map(|e| ExtruderSpec {

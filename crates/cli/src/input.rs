@@ -9,8 +9,9 @@ use std::path::Path;
 pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, ProgressBar)> {
     if path == Path::new("-") {
         let bar = ProgressBar::hidden();
+        let reader = Interruptible(std::io::stdin());
         return Ok((
-            Box::new(BufReader::with_capacity(1 << 16, std::io::stdin())),
+            Box::new(BufReader::with_capacity(1 << 16, reader)),
             "<stdin>".into(),
             bar,
         ));

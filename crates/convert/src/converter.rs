@@ -174,8 +174,14 @@ impl<W: Write> Converter<W> {
     fn command(&mut self, raw: &str, command: &Spanned<Command>) -> Result<(), ConvertError> {
         let span = command.span;
         match &command.value {
-            Command::Move(m) => self.straight(span, m),
-            Command::Arc(a) => self.arc(span, a),
+            Command::Move(m) => {
+                check_magnitudes(span, &m.target)?;
+                self.straight(span, m)
+            }
+            Command::Arc(a) => {
+                check_magnitudes(span, &a.target)?;
+                self.arc(span, a)
+            }
             Command::Home { axes } => self.home(raw, *axes),
             Command::SetPosition { position } => self.set_position(raw, position),
             Command::SetKinematicPosition { .. } => Err(ConvertError::Unsupported {
@@ -295,7 +301,15 @@ impl<W: Write> Converter<W> {
             Err(SegmentError {
                 t,
                 reason: ReachError::AtCentre { .. },
-            }) => return Ok(Some(t.clamp(0.0, 1.0))),
+            }) => {
+                // Through the centre: each half is radial, so its ends bound what the arm must reach.
+                for end in [from, to] {
+                    if let Err(reason) = self.map.machine().check_point(end) {
+                        return Err(ConvertError::Unreachable { span, reason });
+                    }
+                }
+                return Ok(Some(t.clamp(0.0, 1.0)));
+            }
             Err(SegmentError { reason, .. }) => {
                 return Err(ConvertError::Unreachable { span, reason });
             }
@@ -481,6 +495,11 @@ impl<W: Write> Converter<W> {
     /// The first move after the start or a homing: a single `G0` to the target, no `F`.
     fn positioning_move(&mut self, span: Span, target: [f64; 4]) -> Result<(), ConvertError> {
         let p = xyz(target);
+        // The start is unknown, but the target itself must be within the machine's limits.
+        match self.map.machine().check_point(p) {
+            Ok(()) | Err(ReachError::AtCentre { .. }) => {}
+            Err(reason) => return Err(ConvertError::Unreachable { span, reason }),
+        }
         let axes = match self.map.to_axes(p, self.axes) {
             Ok(a) => a,
             Err(ReachError::AtCentre { .. }) => {
@@ -651,6 +670,23 @@ fn check_feed(span: Span, feed: f64) -> Result<(), ConvertError> {
             why: format!("its feed rate {feed} mm/s is not positive"),
         })
     }
+}
+
+/// Largest |coordinate| or |E| (mm) accepted: far beyond any machine, well inside the integer units the output
+/// is counted in, so nothing can overflow.
+const MAX_MAGNITUDE: f64 = 1e9;
+
+fn check_magnitudes(span: Span, target: &[f64; 4]) -> Result<(), ConvertError> {
+    for (value, name) in target.iter().zip(["X", "Y", "Z", "E"]) {
+        if !value.is_finite() || value.abs() > MAX_MAGNITUDE {
+            return Err(ConvertError::Unsupported {
+                span,
+                what: format!("{name} {value:e}"),
+                why: format!("values beyond ±{MAX_MAGNITUDE:e} mm are out of range"),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn xyz(p: [f64; 4]) -> [f64; 3] {

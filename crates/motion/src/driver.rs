@@ -134,6 +134,7 @@ impl<'k, S: MoveSink> Planner<'k, S> {
             Command::SetKinematicPosition { position } => {
                 let current = self.toolhead.position();
                 let xyz = [0, 1, 2].map(|i| position[i].unwrap_or(current[i]));
+                self.toolhead.check_point(xyz).map_err(|e| err(e.into()))?;
                 self.toolhead.set_position(xyz);
                 return Ok(Some(self.toolhead.position()));
             }

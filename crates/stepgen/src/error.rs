@@ -31,6 +31,9 @@ pub enum StepError {
     /// A motor index, queue or count does not match the machine.
     #[error("configuration mismatch: {0}")]
     Config(String),
+    /// The caller asked to stop.
+    #[error("step generation was cancelled")]
+    Cancelled,
     /// Moves arrived before any start pose was declared.
     #[error("moves arrived before the start pose was known (home or SET_KINEMATIC_POSITION first)")]
     NoStartPose,

@@ -230,11 +230,15 @@ impl MoveSink for ChunkSender {
 /// the stepping thread waits for more) on this thread while the motors step on
 /// another, chunk by chunk: planning and stepping overlap. Returns what `produce` returned, the sinks and each
 /// motor's count of filtered step pairs. The output is the same as [`StepPipeline`]'s.
+///
+/// `cancelled` is polled between chunks: when it turns true, the stepping thread drops the work still queued
+/// and the call fails with [`StepError::Cancelled`] (e.g. on Ctrl-C, so partial output is discarded quickly).
 pub fn run_in_parallel<S, R, F>(
     kin: &dyn Kinematics,
     extruder: Option<ExtruderSpec>,
     config: StepGenConfig,
     sinks: Vec<S>,
+    cancelled: fn() -> bool,
     produce: F,
 ) -> Result<(R, Vec<S>, Vec<u64>), StepError>
 where
@@ -247,6 +251,10 @@ where
         let stepper = scope.spawn(move || {
             let mut pipeline = StepPipeline::new(kin, extruder, config, sinks);
             for message in from_planner {
+                if cancelled() {
+                    pipeline.error = Some(StepError::Cancelled);
+                    break;
+                }
                 match message {
                     Message::Chunk {
                         mut toolhead,

@@ -51,6 +51,18 @@ pub struct CheckArgs {
 pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, MachineSetup)> {
     let machine = config::MachineConfig::load(path)
         .map_err(|e| miette::Report::new(diag::config_error(&e)))?;
+    for w in &machine.warnings {
+        match &w.span {
+            Some(span) => eprintln!("{span}: warning: {}", w.message),
+            None => eprintln!("{}: warning: {}", path.display(), w.message),
+        }
+    }
+    for unused in machine.unused_keys() {
+        eprintln!(
+            "{}: warning: option `{}` in [{}] is not one jointspace knows (a typo?); ignored",
+            unused.span, unused.key, unused.section
+        );
+    }
     let setup = MachineSetup::from_config(&machine)
         .map_err(|e| miette::miette!("{}: {e}", path.display()))?;
     Ok((machine, setup))
@@ -237,13 +249,19 @@ pub fn execute(
     };
     // Planning on this thread, stepping on another: they overlap chunk by chunk.
     let kinematics = setup.kinematics.as_ref();
-    let (planned, sinks, filtered) =
-        stepgen::run_in_parallel(kinematics, extruder, config, sinks, |sender| {
+    let (planned, sinks, filtered) = stepgen::run_in_parallel(
+        kinematics,
+        extruder,
+        config,
+        sinks,
+        crate::interrupt::requested,
+        |sender| {
             // The sender is dropped here, which tells the stepping thread that planning is over.
             plan_gcode(&setup, input, name, ((sender, MoveCounter::default()), csv))
                 .map(|(((_sender, counter), csv), summary)| (counter, csv, summary))
-        })
-        .map_err(|e| miette::miette!("step generation failed: {e}"))?;
+        },
+    )
+    .map_err(|e| miette::miette!("step generation failed: {e}"))?;
     let (counter, csv, summary) = planned.map_err(ExecuteError::Pipeline)?;
     if let Some(csv) = csv {
         csv.finish()?;

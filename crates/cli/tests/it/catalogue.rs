@@ -17,7 +17,8 @@
 use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
 
 use crate::common::{binary, example_machine, files_under, non_finite_words};
 
@@ -164,7 +165,13 @@ fn run_case(case: &Path) -> Result<(), String> {
     } else {
         Stdio::null()
     });
-    command.stdout(Stdio::piped()).stderr(Stdio::piped());
+    // Output goes to files (beside, not inside, the checked folders) so a hung case can be killed and read.
+    let stdout_path = scratch.path().join("stdout.txt");
+    let stderr_path = scratch.path().join("stderr.txt");
+    let file = |p: &Path| std::fs::File::create(p).map_err(|e| e.to_string());
+    command
+        .stdout(file(&stdout_path)?)
+        .stderr(file(&stderr_path)?);
     let mut child = command
         .spawn()
         .map_err(|e| format!("cannot start the binary: {e}"))?;
@@ -175,13 +182,13 @@ fn run_case(case: &Path) -> Result<(), String> {
             let _ = stdin.write_all(&data);
         }
     }
-    let output = child.wait_with_output().map_err(|e| e.to_string())?;
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let status = wait_at_most(&mut child, CASE_TIME_LIMIT)?;
+    let stdout = std::fs::read_to_string(&stdout_path).unwrap_or_default();
+    let stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
     let all = format!("{stdout}\n{stderr}");
 
     let mut problems = Vec::new();
-    match output.status.code() {
+    match status.code() {
         Some(code) if code == expect.exit => {}
         code => problems.push(format!("exit code {code:?}, expected {}", expect.exit)),
     }
@@ -228,6 +235,25 @@ fn run_case(case: &Path) -> Result<(), String> {
             problems.join("\n  "),
             indent(&all)
         ))
+    }
+}
+
+/// No case needs more than a few seconds; a hang is a finding, reported rather than waited for.
+const CASE_TIME_LIMIT: Duration = Duration::from_secs(60);
+
+/// The child's exit status, or an error (after killing it) when it runs past `limit`.
+fn wait_at_most(child: &mut Child, limit: Duration) -> Result<ExitStatus, String> {
+    let started = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().map_err(|e| e.to_string())? {
+            return Ok(status);
+        }
+        if started.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(format!("still running after {limit:?}: killed"));
+        }
+        std::thread::sleep(Duration::from_millis(10));
     }
 }
 

@@ -1,7 +1,8 @@
 //! Fuzz findings kept as regression tests: every input in `tests/fuzz_regressions/` (crash, out-of-memory
-//! and timeout inputs from `fuzz/artifacts/`) runs through `run` on the example Cartesian machine. Each must
-//! end in time with success or a clean diagnostic (exit 0 or 1), never a panic or an abort, within the
-//! memory bound.
+//! and timeout inputs from `fuzz/artifacts/`) runs through the command its fuzz target drives: `convert-*`
+//! through `convert` for the example polar machine, the others through `run` on the example Cartesian
+//! machine. Each must end in time with success or a clean diagnostic (exit 0 or 1), never a panic or an
+//! abort, within the memory bound.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -10,13 +11,30 @@ use std::time::{Duration, Instant};
 use crate::common::{binary, example_machine, peak_rss_kb};
 
 const RSS_LIMIT_KB: u64 = 64 * 1024;
-const TIME_LIMIT: Duration = Duration::from_secs(60);
+const TIME_LIMIT: Duration = Duration::from_secs(20);
 
 fn check_input(path: &Path) -> Result<(), String> {
-    let mut child = Command::new(binary())
-        .args(["run", "-c"])
-        .arg(example_machine("cartesian"))
-        .arg(path)
+    let scratch = tempfile::tempdir().map_err(|e| e.to_string())?;
+    let mut command = Command::new(binary());
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    if name.starts_with("convert-") {
+        command
+            .args(["convert", "-c"])
+            .arg(example_machine("polar"))
+            .arg(path);
+        command
+            .arg("-o")
+            .arg(scratch.path().join("converted.gcode"));
+    } else {
+        command
+            .args(["run", "-c"])
+            .arg(example_machine("cartesian"))
+            .arg(path);
+    }
+    let mut child = command
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())

@@ -108,6 +108,46 @@ fn sigint_during_run_leaves_no_output() {
     check_interrupted(&args, CircleStream::new(), &out);
 }
 
+#[test]
+fn sigint_during_run_on_a_file_leaves_no_output() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("print.gcode");
+    let mut file = std::io::BufWriter::new(std::fs::File::create(&input).expect("create input"));
+    // About 20 s of work for `run`: it is interrupted long before the end.
+    CircleStream::new().write_to(&mut file, 1 << 30);
+    std::io::Write::flush(&mut file).expect("write input");
+    drop(file);
+    let out = scratch.path().join("out");
+    std::fs::create_dir_all(&out).expect("output folder");
+    let config = example_machine("cartesian");
+    let steps = out.join("steps");
+    let moves = out.join("moves.csv");
+    let mut child = Command::new(binary())
+        .arg("run")
+        .arg("-c")
+        .arg(&config)
+        .arg(&input)
+        .arg("--steps")
+        .arg(&steps)
+        .arg("--moves")
+        .arg(&moves)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start jointspace");
+    wait_for_output(&out, Duration::from_secs(3));
+    std::thread::sleep(Duration::from_millis(300));
+    send_sigint(child.id());
+    let status = wait_or_kill(&mut child, Duration::from_secs(10));
+    assert!(!status.success(), "an interrupted run exited successfully");
+    let left = files_under(&out);
+    assert!(
+        left.is_empty(),
+        "an interrupted run left files behind ({status}): {left:?}"
+    );
+}
+
 /// Whether the binary has a `convert` subcommand (it arrived after `run`).
 fn has_convert() -> bool {
     Command::new(binary())

@@ -89,3 +89,56 @@ pub struct ScaraParams {
     /// Poses with |sin q2| below this are refused as singular (0 disables the check).
     pub singularity_margin: f64,
 }
+
+impl StepperParams {
+    /// A stepper without soft limits.
+    pub fn new(name: &str, step_distance: f64) -> Self {
+        StepperParams {
+            name: name.into(),
+            step_distance,
+            position_min: None,
+            position_max: None,
+        }
+    }
+}
+
+impl PolarParams {
+    /// Klipper's `example-polar.cfg` machine: 16000 microsteps per bed turn, 80 steps/mm arm, 400 steps/mm Z,
+    /// no assembly offsets, no soft limits.
+    pub fn klipper_example() -> Self {
+        PolarParams {
+            bed: StepperParams::new("stepper_bed", std::f64::consts::TAU / 16000.0),
+            arm: StepperParams::new("stepper_arm", 1.0 / 80.0),
+            z: StepperParams::new("stepper_z", 1.0 / 400.0),
+            arm_zero_offset: 0.0,
+            arm_lateral_offset: 0.0,
+        }
+    }
+}
+
+impl ScaraParams {
+    /// The FEKT-SCARA example machine: arms 100/100 mm, elbow crosstalk ratio 3, shoulder at the origin, 60 mm
+    /// base protection, 9600 microsteps per joint turn, 400 steps/mm Z, left elbow, no limits or margin.
+    pub fn fekt_example() -> Self {
+        let joint_step = std::f64::consts::TAU / 9600.0;
+        ScaraParams {
+            shoulder_stepper: StepperParams::new("stepper_a", joint_step),
+            elbow_stepper: StepperParams::new("stepper_b", joint_step),
+            z: StepperParams::new("stepper_z", 1.0 / 400.0),
+            link1_length: 100.0,
+            link2_length: 100.0,
+            offset_x: 0.0,
+            offset_y: 0.0,
+            elbow_coupling: 1.0 / 3.0,
+            ecr: Some(3.0),
+            elbow: ElbowBranch::Left,
+            frame: ScaraFrame::Standard,
+            shoulder_zero: 0.0,
+            elbow_zero: 0.0,
+            shoulder_limits: None,
+            elbow_limits: None,
+            base_protection_radius: 60.0,
+            singularity_margin: 0.0,
+        }
+    }
+}

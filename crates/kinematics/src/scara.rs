@@ -537,20 +537,7 @@ mod tests {
             shoulder_stepper: stepper("stepper_a"),
             elbow_stepper: stepper("stepper_b"),
             z: stepper("stepper_z"),
-            link1_length: 100.0,
-            link2_length: 100.0,
-            offset_x: 0.0,
-            offset_y: 0.0,
-            elbow_coupling: 1.0 / 3.0,
-            ecr: Some(3.0),
-            elbow: ElbowBranch::Left,
-            frame: ScaraFrame::Standard,
-            shoulder_zero: 0.0,
-            elbow_zero: 0.0,
-            shoulder_limits: None,
-            elbow_limits: None,
-            base_protection_radius: 60.0,
-            singularity_margin: 0.0,
+            ..ScaraParams::fekt_example()
         })
         .expect("valid params")
     }

@@ -6,14 +6,12 @@ use std::path::Path;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use kinematics::scara::Scara;
 use kinematics::{
-    CartesianParams, ElbowBranch, Kinematics, MachineParams, PolarParams, ScaraFrame, ScaraParams,
-    StepperParams,
+    CartesianParams, Kinematics, MachineParams, PolarParams, ScaraParams, StepperParams,
 };
 use stepgen::{CountSink, ExtruderSpec, StepGenConfig, StepGenerator, read_moves_csv};
 use trapq::{Piece, Queue, TrapezoidMove};
 
 const BED_STEP: f64 = std::f64::consts::TAU / 16000.0;
-const JOINT_STEP: f64 = std::f64::consts::TAU / 9600.0;
 const EXTRUDER_STEP: f64 = 33.5 / 3200.0;
 
 fn stepper(name: &str, step_distance: f64) -> StepperParams {
@@ -48,23 +46,9 @@ fn cartesian() -> Box<dyn Kinematics> {
 
 fn scara() -> Box<dyn Kinematics> {
     let p = ScaraParams {
-        shoulder_stepper: stepper("stepper_a", JOINT_STEP),
-        elbow_stepper: stepper("stepper_b", JOINT_STEP),
         z: stepper("stepper_z", 0.0025),
-        link1_length: 100.0,
-        link2_length: 100.0,
-        offset_x: 0.0,
-        offset_y: 0.0,
-        elbow_coupling: 1.0 / 3.0,
-        ecr: Some(3.0),
-        elbow: ElbowBranch::Left,
-        frame: ScaraFrame::Standard,
-        shoulder_zero: 0.0,
-        elbow_zero: 0.0,
-        shoulder_limits: None,
-        elbow_limits: None,
         base_protection_radius: 0.0,
-        singularity_margin: 0.0,
+        ..ScaraParams::fekt_example()
     };
     Box::new(Scara::new(p).expect("scara parameters"))
 }

@@ -174,3 +174,54 @@ fn workspace_data(map: &WorkspaceMap) -> WorkspaceData {
         notes,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn maps_of_the_example_machines_write_every_picture_with_sane_numbers() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        // The polar map needs the bed radius: the arm's travel.
+        let arm = kinematics::StepperParams {
+            position_max: Some(150.0),
+            ..kinematics::StepperParams::new("stepper_arm", 1.0 / 80.0)
+        };
+        let polar = kinematics::PolarParams {
+            arm,
+            ..kinematics::PolarParams::klipper_example()
+        };
+        let machines = [
+            ("polar", kinematics::MachineParams::Polar(polar)),
+            (
+                "scara",
+                kinematics::MachineParams::Scara(kinematics::ScaraParams::fekt_example()),
+            ),
+        ];
+        for (stem, params) in machines {
+            let figures = map_and_draw(&params, 10.0, dir.path(), stem).expect("maps");
+            // Reach, two motors and the worst direction, each as PNG and SVG.
+            assert_eq!(figures.pictures.len(), 8, "{stem}");
+            for path in &figures.pictures {
+                let bytes = std::fs::read(path).expect("picture");
+                if path.ends_with(".png") {
+                    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{path}");
+                } else {
+                    let text = String::from_utf8(bytes).expect("svg is text");
+                    assert!(
+                        text.contains("<svg") && text.trim_end().ends_with("</svg>"),
+                        "{path}"
+                    );
+                }
+            }
+            assert!(figures.reachable_area_mm2 > 0.0);
+            for r in &figures.resolution {
+                assert!(
+                    r.finest > 0.0 && r.finest <= r.coarsest,
+                    "{stem} {}: {r:?}",
+                    r.name
+                );
+            }
+        }
+    }
+}

@@ -2,7 +2,7 @@
 
 use std::f64::consts::TAU;
 
-use kinematics::{ElbowBranch, PolarParams, ScaraFrame, ScaraParams, StepperParams};
+use kinematics::{PolarParams, ScaraParams, StepperParams};
 
 pub fn stepper(name: &str, step: f64, min: Option<f64>, max: Option<f64>) -> StepperParams {
     StepperParams {
@@ -30,19 +30,6 @@ pub fn fekt_params() -> ScaraParams {
         shoulder_stepper: stepper("stepper_a", TAU / 9600.0, Some(-200.0), Some(200.0)),
         elbow_stepper: stepper("stepper_b", TAU / 9600.0, Some(-200.0), Some(200.0)),
         z: stepper("stepper_z", 0.0025, None, Some(200.0)),
-        link1_length: 100.0,
-        link2_length: 100.0,
-        offset_x: 0.0,
-        offset_y: 0.0,
-        elbow_coupling: 1.0 / 3.0,
-        ecr: Some(3.0),
-        elbow: ElbowBranch::Left,
-        frame: ScaraFrame::Standard,
-        shoulder_zero: 0.0,
-        elbow_zero: 0.0,
-        shoulder_limits: None,
-        elbow_limits: None,
-        base_protection_radius: 60.0,
-        singularity_margin: 0.0,
+        ..ScaraParams::fekt_example()
     }
 }

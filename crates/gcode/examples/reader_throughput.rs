@@ -1,5 +1,5 @@
 //! Reader throughput measured in CPU time of this thread (robust on a loaded machine, unlike the
-//! criterion wall-clock numbers): `cargo run --release -p gcode --example throughput [corpus dir]`.
+//! criterion wall-clock numbers): `cargo run --release -p gcode --example reader_throughput [corpus dir]`.
 
 use std::path::PathBuf;
 

@@ -1,6 +1,6 @@
 //! Converts one G-code file N times onto the example polar machine (part centred) and prints the input
 //! size, so that `perf stat` (CPU time, unaffected by other load) gives the throughput:
-//! `cargo run --release -p convert --example throughput -- FILE N`.
+//! `cargo run --release -p convert --example convert_throughput -- FILE N`.
 
 use convert::{AxisMap, ConvertOptions, Converter, Target, convert_gcode};
 

@@ -46,6 +46,21 @@ pub struct ScaraGeometry {
     pub elbow_coupling: f64,
 }
 
+impl From<&kinematics::ScaraParams> for ScaraGeometry {
+    /// A configured machine's nominal geometry, in the identification's terms.
+    fn from(p: &kinematics::ScaraParams) -> Self {
+        ScaraGeometry {
+            link1_length: p.link1_length,
+            link2_length: p.link2_length,
+            offset_x: p.offset_x,
+            offset_y: p.offset_y,
+            shoulder_zero: p.shoulder_zero,
+            elbow_zero: p.elbow_zero,
+            elbow_coupling: p.elbow_coupling,
+        }
+    }
+}
+
 impl ScaraGeometry {
     /// FEKT-SCARA nominal: 100/100 mm arms, ECR 3, no offsets.
     pub fn fekt() -> Self {

@@ -16,6 +16,8 @@ use trapq::MoveSink;
 pub enum SetupError {
     #[error("invalid machine: {0}")]
     Kinematics(String),
+    #[error("the endstop positions give no homing pose: {reason}")]
+    NoHomePose { reason: String },
     #[error("homing pose ({x:.3}, {y:.3}) from the endstop positions is unreachable: {reason}")]
     Home { x: f64, y: f64, reason: String },
 }
@@ -179,9 +181,7 @@ fn home_position(
 }
 
 fn kin_forward(kin: &dyn Kinematics, motors: &[f64]) -> Result<[f64; 3], SetupError> {
-    let p = kin.forward(motors).map_err(|e| SetupError::Home {
-        x: f64::NAN,
-        y: f64::NAN,
+    let p = kin.forward(motors).map_err(|e| SetupError::NoHomePose {
         reason: e.to_string(),
     })?;
     let mut check = vec![0.0; kin.motors().len()];

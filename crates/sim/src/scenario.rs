@@ -163,19 +163,6 @@ fn value(name: &str, believed: f64, measured: f64, actual: f64) -> CorrectedValu
     }
 }
 
-/// Nominal geometry of a SCARA config, in the identification's terms.
-fn geometry(p: &ScaraParams) -> ScaraGeometry {
-    ScaraGeometry {
-        link1_length: p.link1_length,
-        link2_length: p.link2_length,
-        offset_x: p.offset_x,
-        offset_y: p.offset_y,
-        shoulder_zero: p.shoulder_zero,
-        elbow_zero: p.elbow_zero,
-        elbow_coupling: p.elbow_coupling,
-    }
-}
-
 /// Motor angles of an 11×11 grid of joint poses (q1 90° ± 60°, q2 40°…130°) on the believed machine.
 fn calibration_poses(g: &ScaraGeometry) -> Vec<(f64, f64)> {
     let mut poses = Vec::new();
@@ -206,7 +193,7 @@ fn correct_scara(
             "SCARA identification runs in the standard frame; X-SCARA frame machines are not supported".into(),
         ));
     }
-    let start = geometry(believed);
+    let start = ScaraGeometry::from(believed);
     let mut rng = StdRng::seed_from_u64(seed);
     let noise =
         Normal::new(0.0, PATTERN_NOISE).map_err(|e| SimulationError::Calibration(e.to_string()))?;
@@ -243,7 +230,7 @@ fn correct_scara(
         ecr: None,
         ..believed.clone()
     };
-    let t = geometry(truth);
+    let t = ScaraGeometry::from(truth);
     let names = calibrate::scara::PARAM_NAMES;
     let values = names
         .iter()

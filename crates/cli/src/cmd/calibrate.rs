@@ -316,15 +316,7 @@ fn start_geometry(config: Option<&Path>) -> miette::Result<ScaraGeometry> {
     };
     let (machine, _) = super::run::load_machine(path)?;
     match machine.params {
-        kinematics::MachineParams::Scara(p) => Ok(ScaraGeometry {
-            link1_length: p.link1_length,
-            link2_length: p.link2_length,
-            offset_x: p.offset_x,
-            offset_y: p.offset_y,
-            shoulder_zero: p.shoulder_zero,
-            elbow_zero: p.elbow_zero,
-            elbow_coupling: p.elbow_coupling,
-        }),
+        kinematics::MachineParams::Scara(p) => Ok(ScaraGeometry::from(&p)),
         _ => Err(miette::miette!("{}: not a SCARA machine", path.display())),
     }
 }

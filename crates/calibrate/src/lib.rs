@@ -2,6 +2,7 @@
 //! geometry identification by Levenberg–Marquardt.
 
 pub mod circle;
+mod csv;
 pub mod scan;
 pub mod scara;
 

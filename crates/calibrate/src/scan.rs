@@ -698,95 +698,47 @@ pub const DETECTIONS_HEADER: [&str; 4] = ["magnet", "side", "arm_mm", "bed_deg"]
 /// unwrapped bed reading in degrees at the magnet's centre). Returns (near, far) slots per magnet index.
 /// Errors carry `file:line:column`.
 pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanError> {
-    let err = |line: usize, column: usize, message: String| ScanError::Parse {
+    let located = |e: crate::csv::CsvError| ScanError::Parse {
         file: file.to_string(),
-        line,
-        column,
-        message,
+        line: e.line,
+        column: e.column,
+        message: e.message,
     };
-    let mut header_seen = false;
     let mut rows: Vec<(usize, bool, Detection)> = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line_no = i + 1;
-        let content = raw.split('#').next().unwrap_or("");
-        if content.trim().is_empty() {
-            continue;
-        }
-        let mut fields = Vec::new();
-        let mut start = 0;
-        for part in content.split(',') {
-            let lead = part.len() - part.trim_start().len();
-            fields.push((start + lead + 1, part.trim()));
-            start += part.len() + 1;
-        }
-        if fields.len() != 4 {
-            return Err(err(
-                line_no,
-                1,
-                format!("expected 4 columns, found {}", fields.len()),
-            ));
-        }
-        if !header_seen {
-            for ((col, name), want) in fields.iter().zip(DETECTIONS_HEADER) {
-                if !name.eq_ignore_ascii_case(want) {
-                    return Err(err(
-                        line_no,
-                        *col,
-                        format!("header column `{name}` should be `{want}`"),
-                    ));
-                }
-            }
-            header_seen = true;
-            continue;
-        }
-        let (c0, magnet) = fields[0];
-        let magnet: usize = magnet
+    for row in crate::csv::data_rows(text, &DETECTIONS_HEADER).map_err(located)? {
+        let magnet_text = row.fields[0].1;
+        let magnet: usize = magnet_text
             .parse()
             .ok()
             .filter(|&m: &usize| m < 10_000)
-            .ok_or_else(|| err(line_no, c0, format!("`{magnet}` is not a magnet index")))?;
-        let (c1, side) = fields[1];
+            .ok_or_else(|| {
+                located(row.error_at(0, format!("`{magnet_text}` is not a magnet index")))
+            })?;
+        let side = row.fields[1].1;
         let far = match side.to_ascii_lowercase().as_str() {
             "near" => false,
             "far" => true,
             _ => {
-                return Err(err(
-                    line_no,
-                    c1,
-                    format!("side `{side}` should be `near` or `far`"),
+                return Err(located(
+                    row.error_at(1, format!("side `{side}` should be `near` or `far`")),
                 ));
             }
         };
-        let mut v = [0.0; 2];
-        for (slot, (col, text)) in v.iter_mut().zip(&fields[2..]) {
-            *slot = text
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| err(line_no, *col, format!("`{text}` is not a finite number")))?;
-        }
+        let r = row.number(2).map_err(located)?;
+        let theta = row.number(3).map_err(located)?;
         if rows.iter().any(|r| r.0 == magnet && r.1 == far) {
-            return Err(err(
-                line_no,
-                c0,
-                format!("magnet {magnet} {side} given twice"),
+            return Err(located(
+                row.error_at(0, format!("magnet {magnet} {side} given twice")),
             ));
         }
         rows.push((
             magnet,
             far,
             Detection {
-                r: v[0],
-                theta: v[1].to_radians(),
+                r,
+                theta: theta.to_radians(),
                 peak: 0.0,
             },
-        ));
-    }
-    if !header_seen {
-        return Err(err(
-            1,
-            1,
-            format!("missing header line `{}`", DETECTIONS_HEADER.join(",")),
         ));
     }
     let n = rows.iter().map(|r| r.0 + 1).max().unwrap_or(0);

@@ -182,73 +182,21 @@ pub const CSV_HEADER: [&str; 4] = ["motor_a_deg", "motor_b_deg", "x_mm", "y_mm"]
 /// remaining line is the header `motor_a_deg,motor_b_deg,x_mm,y_mm`, then one pose per line.
 /// Errors carry `file:line:column` of the offending field.
 pub fn parse_measurements(text: &str, file: &str) -> Result<Vec<Measurement>, ScaraError> {
-    let err = |line: usize, column: usize, message: String| ScaraError::Parse {
+    let located = |e: crate::csv::CsvError| ScaraError::Parse {
         file: file.to_string(),
-        line,
-        column,
-        message,
+        line: e.line,
+        column: e.column,
+        message: e.message,
     };
     let mut out = Vec::new();
-    let mut header_seen = false;
-    for (i, raw) in text.lines().enumerate() {
-        let line_no = i + 1;
-        let content = raw.split('#').next().unwrap_or("");
-        if content.trim().is_empty() {
-            continue;
-        }
-        // Fields with their 1-based starting columns.
-        let mut fields = Vec::new();
-        let mut start = 0;
-        for part in content.split(',') {
-            let lead = part.len() - part.trim_start().len();
-            fields.push((start + lead + 1, part.trim()));
-            start += part.len() + 1;
-        }
-        if fields.len() != 4 {
-            return Err(err(
-                line_no,
-                1,
-                format!("expected 4 comma-separated columns, found {}", fields.len()),
-            ));
-        }
-        if !header_seen {
-            for ((col, name), want) in fields.iter().zip(CSV_HEADER) {
-                if !name.eq_ignore_ascii_case(want) {
-                    return Err(err(
-                        line_no,
-                        *col,
-                        format!(
-                            "header column `{name}` should be `{want}` (header: {})",
-                            CSV_HEADER.join(",")
-                        ),
-                    ));
-                }
-            }
-            header_seen = true;
-            continue;
-        }
-        let mut v = [0.0; 4];
-        for (slot, (col, s)) in v.iter_mut().zip(&fields) {
-            *slot = s
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| err(line_no, *col, format!("`{s}` is not a finite number")))?;
-        }
+    for row in crate::csv::data_rows(text, &CSV_HEADER).map_err(located)? {
         out.push(Measurement {
-            motor_a: v[0].to_radians(),
-            motor_b: v[1].to_radians(),
-            x: v[2],
-            y: v[3],
-            line: line_no,
+            motor_a: row.number(0).map_err(located)?.to_radians(),
+            motor_b: row.number(1).map_err(located)?.to_radians(),
+            x: row.number(2).map_err(located)?,
+            y: row.number(3).map_err(located)?,
+            line: row.line,
         });
-    }
-    if !header_seen {
-        return Err(err(
-            1,
-            1,
-            format!("missing header line `{}`", CSV_HEADER.join(",")),
-        ));
     }
     Ok(out)
 }

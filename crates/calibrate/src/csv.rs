@@ -1,0 +1,140 @@
+//! The small comma-separated files calibration reads (logged scans, measured points): `#` comments, blank lines,
+//! a header line, then rows of a fixed number of fields, each field with its 1-based column for error messages.
+
+/// A problem at `line`, `column` (1-based); the caller adds the file name.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct CsvError {
+    pub line: usize,
+    pub column: usize,
+    pub message: String,
+}
+
+/// One data row: its line number and its fields, each with the column where it starts.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Row<'a> {
+    pub line: usize,
+    pub fields: Vec<(usize, &'a str)>,
+}
+
+impl Row<'_> {
+    fn error(&self, column: usize, message: String) -> CsvError {
+        CsvError {
+            line: self.line,
+            column,
+            message,
+        }
+    }
+
+    /// Field `index` as a finite number.
+    pub fn number(&self, index: usize) -> Result<f64, CsvError> {
+        let (column, text) = self.fields[index];
+        text.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| self.error(column, format!("`{text}` is not a finite number")))
+    }
+
+    /// An error pointing at field `index`.
+    pub fn error_at(&self, index: usize, message: String) -> CsvError {
+        self.error(self.fields[index].0, message)
+    }
+}
+
+/// The data rows of `text`, after checking that the first row is `header` (case-insensitive) and that every
+/// row has as many fields as the header.
+pub(crate) fn data_rows<'a>(text: &'a str, header: &[&str]) -> Result<Vec<Row<'a>>, CsvError> {
+    let mut rows = Vec::new();
+    let mut header_seen = false;
+    for (i, raw) in text.lines().enumerate() {
+        let content = raw.split('#').next().unwrap_or("");
+        if content.trim().is_empty() {
+            continue;
+        }
+        let row = Row {
+            line: i + 1,
+            fields: split_fields(content),
+        };
+        if row.fields.len() != header.len() {
+            return Err(row.error(
+                1,
+                format!(
+                    "expected {} comma-separated columns, found {}",
+                    header.len(),
+                    row.fields.len()
+                ),
+            ));
+        }
+        if header_seen {
+            rows.push(row);
+            continue;
+        }
+        for ((column, name), want) in row.fields.iter().zip(header) {
+            if !name.eq_ignore_ascii_case(want) {
+                return Err(row.error(
+                    *column,
+                    format!(
+                        "header column `{name}` should be `{want}` (header: {})",
+                        header.join(",")
+                    ),
+                ));
+            }
+        }
+        header_seen = true;
+    }
+    if !header_seen {
+        return Err(CsvError {
+            line: 1,
+            column: 1,
+            message: format!("missing header line `{}`", header.join(",")),
+        });
+    }
+    Ok(rows)
+}
+
+/// Trimmed fields with their 1-based starting columns.
+fn split_fields(content: &str) -> Vec<(usize, &str)> {
+    let mut fields = Vec::new();
+    let mut start = 0;
+    for part in content.split(',') {
+        let lead = part.len() - part.trim_start().len();
+        fields.push((start + lead + 1, part.trim()));
+        start += part.len() + 1;
+    }
+    fields
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_keep_their_columns_and_skip_comments() {
+        let text = "# log\na, b\n\n1,  2 # note\n";
+        let rows = data_rows(text, &["a", "b"]).expect("parses");
+        assert_eq!(
+            rows,
+            vec![Row {
+                line: 4,
+                fields: vec![(1, "1"), (5, "2")]
+            }]
+        );
+        assert_eq!(rows[0].number(1), Ok(2.0));
+    }
+
+    #[test]
+    fn wrong_header_width_and_numbers_are_located() {
+        let place = |text: &str| {
+            data_rows(text, &["a", "b"])
+                .err()
+                .map(|e| (e.line, e.column))
+        };
+        assert_eq!(place("a,c\n"), Some((1, 3)));
+        assert_eq!(place("a,b\n1\n"), Some((2, 1)));
+        assert_eq!(place(""), Some((1, 1)));
+        let rows = data_rows("a,b\n1,x\n", &["a", "b"]).expect("parses");
+        assert_eq!(
+            rows[0].number(1).err().map(|e| (e.line, e.column)),
+            Some((2, 3))
+        );
+    }
+}

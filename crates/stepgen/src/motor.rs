@@ -97,6 +97,8 @@ pub struct MotorStepper {
     /// A polar bed's ideal angle at the end of the last piece (continuous with `commanded`): the angle the bed
     /// keeps while the toolhead sits at the centre, where the angle of the position itself is undefined.
     bed_angle: f64,
+    /// `(cos, sin)` of one step: a bed's levels advance by this rotation (computed once, not per stretch).
+    step_rotation: [f64; 2],
 }
 
 impl MotorStepper {
@@ -113,6 +115,7 @@ impl MotorStepper {
             MotorModel::General { index } => Some(GeneralState::new(index, start_motors)),
             _ => None,
         };
+        let (step_sin, step_cos) = spec.step_distance.sin_cos();
         MotorStepper {
             half_step: 0.5 * spec.step_distance,
             spec,
@@ -122,6 +125,7 @@ impl MotorStepper {
             filter: StepFilter::new(config.clock_hz, config.filter_time),
             general,
             bed_angle: start_position,
+            step_rotation: [step_cos, step_sin],
         }
     }
 
@@ -252,18 +256,36 @@ impl MotorStepper {
     }
 
     #[inline]
+    fn wants_step(&self, f: f64, up: bool) -> bool {
+        if up {
+            self.wants_up(f)
+        } else {
+            self.wants_down(f)
+        }
+    }
+
+    /// Move the commanded position one step, with Klipper's arithmetic (`c ± ½step ± ½step`).
+    #[inline]
+    fn advance(&mut self, up: bool) {
+        if up {
+            self.net += 1;
+            self.commanded = (self.commanded + self.half_step) + self.half_step;
+        } else {
+            self.net -= 1;
+            self.commanded = (self.commanded - self.half_step) - self.half_step;
+        }
+        self.dir_up = up;
+    }
+
+    #[inline]
     pub(crate) fn step_up<S: StepSink + ?Sized>(&mut self, time: f64, sink: &mut S) {
-        self.net += 1;
-        self.commanded = (self.commanded + self.half_step) + self.half_step;
-        self.dir_up = true;
+        self.advance(true);
         self.filter.push(time, true, sink);
     }
 
     #[inline]
     pub(crate) fn step_down<S: StepSink + ?Sized>(&mut self, time: f64, sink: &mut S) {
-        self.net -= 1;
-        self.commanded = (self.commanded - self.half_step) - self.half_step;
-        self.dir_up = false;
+        self.advance(false);
         self.filter.push(time, false, sink);
     }
 
@@ -306,18 +328,42 @@ impl MotorStepper {
         sink: &mut S,
     ) {
         self.settle(fa, print_time + t_a, sink);
-        if fb > fa {
-            while self.wants_up(fb) {
-                let t = inverse.time_at_level(self.up_level(), 1.0);
-                self.step_up(print_time + t, sink);
-            }
-        } else if fb < fa {
-            while self.wants_down(fb) {
-                let t = inverse.time_at_level(self.down_level(), -1.0);
-                self.step_down(print_time + t, sink);
-            }
+        if fb != fa {
+            self.steps_towards(fb, fb > fa, print_time, inverse, sink);
         }
         self.check_commit(fb, sink);
+    }
+
+    /// Every step from the commanded position towards `fb` (up or down). Times are found a batch at a time and
+    /// then filtered in order: the divisions and square roots of a batch do not wait on the filter and sink,
+    /// so the CPU overlaps them.
+    #[inline]
+    fn steps_towards<S: StepSink + ?Sized, I: LevelInverse>(
+        &mut self,
+        fb: f64,
+        up: bool,
+        print_time: f64,
+        inverse: &mut I,
+        sink: &mut S,
+    ) {
+        const BATCH: usize = 32;
+        let dir = if up { 1.0 } else { -1.0 };
+        let mut times = [0.0; BATCH];
+        loop {
+            let mut count = 0;
+            while count < BATCH && self.wants_step(fb, up) {
+                let level = if up { self.up_level() } else { self.down_level() };
+                times[count] = inverse.time_at_level(level, dir);
+                self.advance(up);
+                count += 1;
+            }
+            for &t in &times[..count] {
+                self.filter.push(print_time + t, up, sink);
+            }
+            if count < BATCH {
+                return;
+            }
+        }
     }
 
     fn linear_span<S: StepSink + ?Sized>(
@@ -399,7 +445,7 @@ impl MotorStepper {
         // Swept angle along a line is below π; its sign is the sign of cross(P, U) times the travel.
         let sweep = ((span.d1 - span.d0) * line.cross).atan2(qa[0] * qb[0] + qa[1] * qb[1]);
         let fb = fa + sweep;
-        let mut inverse = AngleInverse::new(&line, span, self.spec.step_distance);
+        let mut inverse = AngleInverse::new(&line, span, self.step_rotation);
         self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
         Ok(())
@@ -498,10 +544,12 @@ impl PlaneLine {
         [self.p[0] + self.u[0] * s, self.p[1] + self.u[1] * s]
     }
 
+    /// The arm position `√(x² + y²)`, in Klipper's own arithmetic (not `hypot`: slower, and it can differ in
+    /// the last bit).
     #[inline]
     fn radius_at(&self, s: f64) -> f64 {
         let q = self.point(s);
-        q[0].hypot(q[1])
+        (q[0] * q[0] + q[1] * q[1]).sqrt()
     }
 
     /// Distance parameter of the point closest to the centre (meaningful when `uu > 0`).
@@ -530,24 +578,23 @@ impl PlaneLine {
 struct AngleInverse<'a> {
     line: &'a PlaneLine,
     span: &'a Span,
-    step: f64,
+    /// `(cos, sin)` of one step up.
+    step_rotation: [f64; 2],
     cos_sin: [f64; 2],
-    /// Rotation by one step in the stretch's direction, set at the first level.
-    rotation: Option<[f64; 2]>,
+    /// Levels since `cos_sin` was last computed exactly (`u32::MAX` before the first level).
     since_anchor: u32,
 }
 
 impl<'a> AngleInverse<'a> {
     const REANCHOR: u32 = 32;
 
-    fn new(line: &'a PlaneLine, span: &'a Span, step: f64) -> Self {
+    fn new(line: &'a PlaneLine, span: &'a Span, step_rotation: [f64; 2]) -> Self {
         AngleInverse {
             line,
             span,
-            step,
+            step_rotation,
             cos_sin: [1.0, 0.0],
-            rotation: None,
-            since_anchor: 0,
+            since_anchor: u32::MAX,
         }
     }
 }
@@ -555,21 +602,16 @@ impl<'a> AngleInverse<'a> {
 impl LevelInverse for AngleInverse<'_> {
     #[inline]
     fn time_at_level(&mut self, level: f64, dir: f64) -> f64 {
-        let [c, s] = match self.rotation {
-            Some([rc, rs]) if self.since_anchor < Self::REANCHOR => {
-                let [c, s] = self.cos_sin;
-                self.since_anchor += 1;
-                [c * rc - s * rs, s * rc + c * rs]
-            }
-            _ => {
-                if self.rotation.is_none() {
-                    let (rs, rc) = (dir * self.step).sin_cos();
-                    self.rotation = Some([rc, rs]);
-                }
-                self.since_anchor = 1;
-                let (s, c) = level.sin_cos();
-                [c, s]
-            }
+        let [c, s] = if self.since_anchor < Self::REANCHOR {
+            // sin is odd and cos even, so the rotation by one step down is exactly the conjugate.
+            let [rc, rs] = [self.step_rotation[0], dir * self.step_rotation[1]];
+            let [c, s] = self.cos_sin;
+            self.since_anchor += 1;
+            [c * rc - s * rs, s * rc + c * rs]
+        } else {
+            self.since_anchor = 1;
+            let (s, c) = level.sin_cos();
+            [c, s]
         };
         self.cos_sin = [c, s];
         let l = self.line;

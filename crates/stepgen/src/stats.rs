@@ -1,7 +1,5 @@
 //! Per-motor step statistics for summaries: counts, net steps, clock range, minimum interval and peak rates.
 
-use std::collections::VecDeque;
-
 use crate::sink::StepSink;
 
 /// Collects statistics from a motor's step stream (a [`StepSink`]).
@@ -13,7 +11,9 @@ pub struct StepStats {
     first_clock: Option<u64>,
     last_clock: u64,
     min_interval: Option<u64>,
-    window: VecDeque<u64>,
+    /// The most recent clocks, step `i` at `recent[i & (len − 1)]`; the length is a power of two above
+    /// `peak_in_window`, so the step `peak_in_window` places back is always still there.
+    recent: Vec<u64>,
     peak_in_window: usize,
 }
 
@@ -45,7 +45,7 @@ impl StepStats {
             first_clock: None,
             last_clock: 0,
             min_interval: None,
-            window: VecDeque::new(),
+            recent: vec![0; 16],
             peak_in_window: 0,
         }
     }
@@ -70,7 +70,41 @@ impl StepStats {
     }
 }
 
+impl StepStats {
+    /// Most steps in a window (clock − 1 ms, clock] ending at any step so far, updated with the step `index`.
+    ///
+    /// A window ending at a step holds at most one step more than the window ending at the step before, so
+    /// the peak grows by one exactly when the step `peak` places back is still inside the new window: one
+    /// comparison per step, whatever the step rate.
+    #[inline]
+    fn update_peak(&mut self, index: usize, clock: u64) {
+        let mask = self.recent.len() - 1;
+        let peak = self.peak_in_window;
+        if index >= peak && (peak == 0 || self.recent[(index - peak) & mask] + self.window_ticks > clock)
+        {
+            self.peak_in_window += 1;
+            if self.peak_in_window >= self.recent.len() {
+                self.grow_recent(index);
+            }
+        }
+        let mask = self.recent.len() - 1;
+        self.recent[index & mask] = clock;
+    }
+
+    /// Double the ring of recent clocks, keeping the steps before `index` at their places.
+    #[cold]
+    fn grow_recent(&mut self, index: usize) {
+        let old_len = self.recent.len();
+        let mut grown = vec![0; 2 * old_len];
+        for i in index.saturating_sub(old_len)..index {
+            grown[i & (2 * old_len - 1)] = self.recent[i & (old_len - 1)];
+        }
+        self.recent = grown;
+    }
+}
+
 impl StepSink for StepStats {
+    #[inline]
     fn step(&mut self, clock: u64, dir: bool) {
         if self.first_clock.is_none() {
             self.first_clock = Some(clock);
@@ -79,18 +113,9 @@ impl StepSink for StepStats {
             self.min_interval = Some(self.min_interval.map_or(gap, |m| m.min(gap)));
         }
         self.last_clock = clock;
+        self.update_peak(self.steps as usize, clock);
         self.steps += 1;
         self.net += if dir { 1 } else { -1 };
-        // Sliding window of steps within the last millisecond (half-open: (clock − 1 ms, clock]).
-        while self
-            .window
-            .front()
-            .is_some_and(|&c| c + self.window_ticks <= clock)
-        {
-            self.window.pop_front();
-        }
-        self.window.push_back(clock);
-        self.peak_in_window = self.peak_in_window.max(self.window.len());
     }
 }
 
@@ -115,6 +140,40 @@ mod tests {
         assert_eq!(s.peak_rate_min_interval, 16_000.0);
         assert_eq!(s.peak_rate_1ms, 5_000.0);
         assert_eq!(s.filtered_pairs, 3);
+    }
+
+    /// The peak by brute force: for every step, the steps in (clock − window, clock].
+    fn brute_peak(clocks: &[u64], window: u64) -> usize {
+        (0..clocks.len())
+            .map(|i| clocks[..=i].iter().filter(|&&c| c + window > clocks[i]).count())
+            .max()
+            .unwrap_or(0)
+    }
+
+    #[test]
+    fn peak_window_matches_brute_force_through_bursts() {
+        // Bursts of steps sharing ticks (the ring has to grow past 16), gaps, and steady rates.
+        let mut clocks = Vec::new();
+        let mut clock = 5u64;
+        for round in 0..40u64 {
+            let burst = (round * 7) % 45;
+            clocks.extend(std::iter::repeat_n(clock, burst as usize));
+            for k in 0..(round % 9) {
+                clock += 1000 + 3000 * k;
+                clocks.push(clock);
+            }
+            clock += 16_000 * (round % 3);
+        }
+        let mut stats = StepStats::new(16e6);
+        for &c in &clocks {
+            stats.step(c, true);
+        }
+        let summary = stats.summary(16e6, 0);
+        assert_eq!(
+            summary.peak_rate_1ms,
+            brute_peak(&clocks, 16_000) as f64 * 1e3
+        );
+        assert!(summary.peak_rate_1ms >= 44_000.0);
     }
 
     #[test]

@@ -64,25 +64,12 @@ impl Polar {
 
     /// `(bed angle in (−π, π], arm position)` for the XY point, or why there is none.
     fn bed_and_arm(&self, x: f64, y: f64) -> Result<(f64, f64), ReachError> {
+        let s = self.along_arm(x, y)?;
         let (dx, dy) = (self.params.arm_zero_offset, self.params.arm_lateral_offset);
-        if dy == 0.0 && x == 0.0 && y == 0.0 {
-            return Err(ReachError::AtCentre { x, y });
-        }
         if self.is_ideal() {
             // Klipper's exact expressions, so step times match bit for bit.
-            return Ok((y.atan2(x), (x * x + y * y).sqrt()));
+            return Ok((y.atan2(x), s));
         }
-        let rho2 = x * x + y * y;
-        let s2 = rho2 - dy * dy;
-        if s2 < 0.0 {
-            return Err(ReachError::InsideMinimumRadius {
-                x,
-                y,
-                distance: rho2.sqrt(),
-                min: dy.abs(),
-            });
-        }
-        let s = s2.sqrt();
         // dx + r = s exactly in real arithmetic; use s to avoid a rounding step.
         let bed = y.atan2(x) - dy.atan2(s);
         let bed = if bed > std::f64::consts::PI {
@@ -98,10 +85,33 @@ impl Polar {
         Ok((bed, s - dx))
     }
 
+    /// Distance of the XY point along the arm's line from the point of that line nearest the centre (the arm
+    /// position plus `arm_zero_offset`), or why the arm cannot reach it. No angle: limit checks need none.
+    fn along_arm(&self, x: f64, y: f64) -> Result<f64, ReachError> {
+        let dy = self.params.arm_lateral_offset;
+        if dy == 0.0 && x == 0.0 && y == 0.0 {
+            return Err(ReachError::AtCentre { x, y });
+        }
+        let rho2 = x * x + y * y;
+        if dy == 0.0 {
+            return Ok(rho2.sqrt());
+        }
+        let s2 = rho2 - dy * dy;
+        if s2 < 0.0 {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance: rho2.sqrt(),
+                min: dy.abs(),
+            });
+        }
+        Ok(s2.sqrt())
+    }
+
     fn check_limits(&self, p: Vec3) -> Result<(), ReachError> {
         ensure_finite_point(p)?;
-        let arm = match self.bed_and_arm(p[0], p[1]) {
-            Ok((_, arm)) => arm,
+        let arm = match self.along_arm(p[0], p[1]) {
+            Ok(s) => s - self.params.arm_zero_offset,
             // At the centre the bed angle is undefined but the arm position is not: the point is reachable
             // (a move may end or start there; crossing it is the planner's business).
             Err(ReachError::AtCentre { .. }) => -self.params.arm_zero_offset,
@@ -220,7 +230,7 @@ impl Kinematics for Polar {
         let near = lerp(a, b, t_near);
         // Passing through the centre needs the bed to turn half a revolution there; the planner splits such
         // moves at the centre, so only a segment that crosses it (not one that ends or starts on it) fails.
-        let off_centre = |p: Vec3| p[0].hypot(p[1]) > CENTRE_TOLERANCE;
+        let off_centre = |p: Vec3| p[0] * p[0] + p[1] * p[1] > CENTRE_TOLERANCE * CENTRE_TOLERANCE;
         let crosses = off_centre(a) && off_centre(b);
         if self.params.arm_lateral_offset == 0.0 && d_near <= CENTRE_TOLERANCE && crosses {
             return Err(SegmentError {

@@ -528,7 +528,11 @@ fn centre_crossing(mv: &Move, centre: [f64; 2]) -> Option<[f64; 4]> {
         return None;
     }
     let (a, b) = (mv.start_pos, mv.end_pos);
-    let off = |p: [f64; 4]| (p[0] - centre[0]).hypot(p[1] - centre[1]) > TOLERANCE;
+    // Squared distances: this runs for every move, and `hypot` is slow.
+    let off = |p: [f64; 4]| {
+        let (x, y) = (p[0] - centre[0], p[1] - centre[1]);
+        x * x + y * y > TOLERANCE * TOLERANCE
+    };
     let d = [b[0] - a[0], b[1] - a[1]];
     let len2 = d[0] * d[0] + d[1] * d[1];
     if !off(a) || !off(b) || len2 == 0.0 {
@@ -539,7 +543,7 @@ fn centre_crossing(mv: &Move, centre: [f64; 2]) -> Option<[f64; 4]> {
         return None;
     }
     let near = [a[0] + d[0] * t - centre[0], a[1] + d[1] * t - centre[1]];
-    if near[0].hypot(near[1]) > TOLERANCE {
+    if near[0] * near[0] + near[1] * near[1] > TOLERANCE * TOLERANCE {
         return None;
     }
     Some([

@@ -75,37 +75,65 @@ pub struct TrapezoidMove {
 impl TrapezoidMove {
     /// Split into up to three pieces, skipping zero-length phases, the way Klipper's `trapq_append` does:
     /// each later piece starts at the position reached at the end of the previous one.
-    pub fn pieces(&self) -> impl Iterator<Item = Piece> {
-        let mut out = [None; 3];
-        let mut print_time = self.print_time;
-        let mut start_pos = self.start_pos;
-        let phases = [
-            (self.accel_t, self.start_v, 0.5 * self.accel),
-            (self.cruise_t, self.cruise_v, 0.0),
-            (self.decel_t, self.cruise_v, -0.5 * self.accel),
-        ];
-        for (slot, (duration, start_v, half_accel)) in out.iter_mut().zip(phases) {
-            if duration == 0.0 {
-                continue;
-            }
-            let piece = Piece {
-                print_time,
-                duration,
-                start_v,
-                half_accel,
-                start_pos,
-                axes_r: self.axes_r,
-            };
-            print_time += duration;
-            start_pos = piece.position(duration);
-            *slot = Some(piece);
+    pub fn pieces(&self) -> Pieces<'_> {
+        Pieces {
+            mv: self,
+            phase: 0,
+            print_time: self.print_time,
+            start_pos: self.start_pos,
         }
-        out.into_iter().flatten()
     }
 
     /// Total duration (s).
     pub fn duration(&self) -> f64 {
         self.accel_t + self.cruise_t + self.decel_t
+    }
+}
+
+/// The pieces of a [`TrapezoidMove`], made one at a time (no buffer: the planner hands hundreds of
+/// thousands of moves a second to step generation).
+#[derive(Debug, Clone)]
+pub struct Pieces<'m> {
+    mv: &'m TrapezoidMove,
+    /// Next phase to look at: 0 accelerate, 1 cruise, 2 decelerate, 3 done.
+    phase: u8,
+    print_time: f64,
+    start_pos: Vec3,
+}
+
+impl Iterator for Pieces<'_> {
+    type Item = Piece;
+
+    #[inline]
+    fn next(&mut self) -> Option<Piece> {
+        let mv = self.mv;
+        while self.phase < 3 {
+            let (duration, start_v, half_accel) = match self.phase {
+                0 => (mv.accel_t, mv.start_v, 0.5 * mv.accel),
+                1 => (mv.cruise_t, mv.cruise_v, 0.0),
+                _ => (mv.decel_t, mv.cruise_v, -0.5 * mv.accel),
+            };
+            self.phase += 1;
+            if duration == 0.0 {
+                continue;
+            }
+            let piece = Piece {
+                print_time: self.print_time,
+                duration,
+                start_v,
+                half_accel,
+                start_pos: self.start_pos,
+                axes_r: mv.axes_r,
+            };
+            self.print_time += duration;
+            self.start_pos = piece.position(duration);
+            return Some(piece);
+        }
+        None
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (0, Some(3 - usize::from(self.phase)))
     }
 }
 

@@ -256,8 +256,9 @@ impl LookAhead {
     /// speed, on two tracks — the real acceleration, and the minimum-cruise-ratio pseudo acceleration, which
     /// bounds how high a short accelerate-then-decelerate move may peak. Forward pass: moves that cannot
     /// accelerate inherit the cruise speed of the move before them. A lazy flush only releases moves up to the
-    /// last point where a later move can no longer change them.
-    pub fn flush(&mut self, lazy: bool, out: &mut Vec<Move>) {
+    /// last point where a later move can no longer change them. Returns how many moves at the front of the
+    /// queue are final; the caller reads them with [`Self::ready`] and then [`Self::release`]s them (no copy).
+    pub fn flush(&mut self, lazy: bool) -> usize {
         self.junction_flush = LOOKAHEAD_FLUSH_TIME;
         let mut update_flush_count = lazy;
         let mut flush_count = self.queue.len();
@@ -309,7 +310,7 @@ impl LookAhead {
             next_mcr_start_v2 = mcr_start_v2;
         }
         if update_flush_count || flush_count == 0 {
-            return;
+            return 0;
         }
         let mut prev_cruise_v2: f64 = 0.0;
         for (i, junction) in self.scratch.iter().take(flush_count).enumerate() {
@@ -323,7 +324,17 @@ impl LookAhead {
             );
             prev_cruise_v2 = cruise_v2;
         }
-        out.extend(self.queue.drain(..flush_count));
+        flush_count
+    }
+
+    /// The first `count` queued moves (those a [`Self::flush`] made final), in order.
+    pub fn ready(&self, count: usize) -> impl Iterator<Item = &Move> {
+        self.queue.range(..count)
+    }
+
+    /// Drop the first `count` queued moves once they have been handed on.
+    pub fn release(&mut self, count: usize) {
+        self.queue.drain(..count);
     }
 
     /// Drop every queued move (after an error).

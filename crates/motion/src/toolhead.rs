@@ -77,7 +77,6 @@ pub struct Toolhead<'k, S: MoveSink> {
     kinematics: &'k dyn Kinematics,
     sink: S,
     lookahead: LookAhead,
-    flushed: Vec<Move>,
     commanded_pos: [f64; 4],
     print_time: f64,
     /// The lookahead was fully flushed: the next moves re-synchronise the print time.
@@ -122,7 +121,6 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             kinematics,
             sink,
             lookahead: LookAhead::new(),
-            flushed: Vec::new(),
             commanded_pos: [0.0; 4],
             print_time: 0.0,
             need_prime: true,
@@ -458,65 +456,63 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     }
 
     fn process_lookahead(&mut self, lazy: bool) {
-        let mut moves = std::mem::take(&mut self.flushed);
-        self.lookahead.flush(lazy, &mut moves);
-        if !moves.is_empty() {
+        let count = self.lookahead.flush(lazy);
+        if count > 0 {
             if self.need_prime {
                 self.need_prime = false;
                 self.calc_print_time();
             }
             let mut next_move_time = self.print_time;
-            for mv in &moves {
-                self.emit(next_move_time, mv);
+            for mv in self.lookahead.ready(count) {
+                emit(&mut self.sink, next_move_time, mv);
                 next_move_time =
                     next_move_time + mv.plan.accel_t + mv.plan.cruise_t + mv.plan.decel_t;
             }
+            self.lookahead.release(count);
             self.print_time = self.print_time.max(next_move_time);
             self.note_motion_queued(next_move_time);
             self.sink.flush(self.print_time);
         }
-        moves.clear();
-        self.flushed = moves;
     }
+}
 
-    fn emit(&mut self, print_time: f64, mv: &Move) {
-        let plan = mv.plan;
-        if mv.is_kinematic {
-            self.sink.append(
-                Queue::Toolhead,
-                &TrapezoidMove {
-                    print_time,
-                    accel_t: plan.accel_t,
-                    cruise_t: plan.cruise_t,
-                    decel_t: plan.decel_t,
-                    start_pos: [mv.start_pos[0], mv.start_pos[1], mv.start_pos[2]],
-                    axes_r: mv.direction(),
-                    start_v: plan.start_v,
-                    cruise_v: plan.cruise_v,
-                    accel: mv.accel,
-                },
-            );
-        }
-        if mv.axes_d[3] != 0.0 {
-            let e_ratio = mv.axes_r[3];
-            // The y component flags moves where pressure advance could apply (extruding while moving in XY).
-            let pressure_advance_flag =
-                e_ratio > 0.0 && (mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0);
-            self.sink.append(
-                Queue::Extruder,
-                &TrapezoidMove {
-                    print_time,
-                    accel_t: plan.accel_t,
-                    cruise_t: plan.cruise_t,
-                    decel_t: plan.decel_t,
-                    start_pos: [mv.start_pos[3], 0.0, 0.0],
-                    axes_r: [1.0, if pressure_advance_flag { 1.0 } else { 0.0 }, 0.0],
-                    start_v: plan.start_v * e_ratio,
-                    cruise_v: plan.cruise_v * e_ratio,
-                    accel: mv.accel * e_ratio,
-                },
-            );
-        }
+/// Hand a planned move's pieces to the sink: the toolhead's, and the extruder's when it extrudes.
+fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
+    let plan = mv.plan;
+    if mv.is_kinematic {
+        sink.append(
+            Queue::Toolhead,
+            &TrapezoidMove {
+                print_time,
+                accel_t: plan.accel_t,
+                cruise_t: plan.cruise_t,
+                decel_t: plan.decel_t,
+                start_pos: [mv.start_pos[0], mv.start_pos[1], mv.start_pos[2]],
+                axes_r: mv.direction(),
+                start_v: plan.start_v,
+                cruise_v: plan.cruise_v,
+                accel: mv.accel,
+            },
+        );
+    }
+    if mv.axes_d[3] != 0.0 {
+        let e_ratio = mv.axes_r[3];
+        // The y component flags moves where pressure advance could apply (extruding while moving in XY).
+        let pressure_advance_flag = e_ratio > 0.0 && (mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0);
+        sink.append(
+            Queue::Extruder,
+            &TrapezoidMove {
+                print_time,
+                accel_t: plan.accel_t,
+                cruise_t: plan.cruise_t,
+                decel_t: plan.decel_t,
+                start_pos: [mv.start_pos[3], 0.0, 0.0],
+                axes_r: [1.0, if pressure_advance_flag { 1.0 } else { 0.0 }, 0.0],
+                start_v: plan.start_v * e_ratio,
+                cruise_v: plan.cruise_v * e_ratio,
+                accel: mv.accel * e_ratio,
+            },
+        );
     }
 }
 

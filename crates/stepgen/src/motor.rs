@@ -352,7 +352,11 @@ impl MotorStepper {
         loop {
             let mut count = 0;
             while count < BATCH && self.wants_step(fb, up) {
-                let level = if up { self.up_level() } else { self.down_level() };
+                let level = if up {
+                    self.up_level()
+                } else {
+                    self.down_level()
+                };
                 times[count] = inverse.time_at_level(level, dir);
                 self.advance(up);
                 count += 1;

@@ -80,7 +80,8 @@ impl StepStats {
     fn update_peak(&mut self, index: usize, clock: u64) {
         let mask = self.recent.len() - 1;
         let peak = self.peak_in_window;
-        if index >= peak && (peak == 0 || self.recent[(index - peak) & mask] + self.window_ticks > clock)
+        if index >= peak
+            && (peak == 0 || self.recent[(index - peak) & mask] + self.window_ticks > clock)
         {
             self.peak_in_window += 1;
             if self.peak_in_window >= self.recent.len() {
@@ -145,7 +146,12 @@ mod tests {
     /// The peak by brute force: for every step, the steps in (clock − window, clock].
     fn brute_peak(clocks: &[u64], window: u64) -> usize {
         (0..clocks.len())
-            .map(|i| clocks[..=i].iter().filter(|&&c| c + window > clocks[i]).count())
+            .map(|i| {
+                clocks[..=i]
+                    .iter()
+                    .filter(|&&c| c + window > clocks[i])
+                    .count()
+            })
             .max()
             .unwrap_or(0)
     }

@@ -8,6 +8,9 @@
 
 use crate::sink::StepSink;
 
+/// Clocks handed to the sink at once by [`StepFilter::push_run`].
+const RUN_CAPACITY: usize = 64;
+
 /// Converts solver times to clocks and filters rapid step+dir+step sequences for one motor.
 #[derive(Debug, Clone)]
 pub struct StepFilter {
@@ -30,18 +33,64 @@ impl StepFilter {
         }
     }
 
-    /// Round an absolute print time to the nearest clock tick. Times are finite and ≥ 0 by construction;
-    /// the float-to-integer cast truncates, which is `floor` for these non-negative values (and saturates at 0
-    /// otherwise), without a libm call.
+    /// Round an absolute print time to the nearest clock tick. Times are finite and ≥ 0 by construction; the
+    /// float-to-integer cast truncates, which is `floor` for these non-negative values. The cast goes through
+    /// `i64` (one instruction; a direct `u64` cast needs several) and saturates; `max(0)` keeps it
+    /// non-negative.
     #[inline]
     pub fn clock_of(&self, time: f64) -> u64 {
-        (time * self.clock_hz + 0.5) as u64
+        ((time * self.clock_hz + 0.5) as i64).max(0) as u64
     }
 
     /// A new step at absolute print time `time`.
     #[inline]
     pub fn push<S: StepSink + ?Sized>(&mut self, time: f64, dir: bool, sink: &mut S) {
-        let clock = self.clock_of(time);
+        self.push_clock(self.clock_of(time), dir, sink);
+    }
+
+    /// Steps at `print_time + t` for each `t` of `times` (non-decreasing), all in direction `dir`: the same
+    /// as pushing them one by one. Only the first can meet a reversal; each later one makes the step before
+    /// it final, so those go to the sink as one slice.
+    #[inline]
+    pub fn push_run<S: StepSink + ?Sized>(
+        &mut self,
+        times: &[f64],
+        print_time: f64,
+        dir: bool,
+        sink: &mut S,
+    ) {
+        let Some((&first, rest)) = times.split_first() else {
+            return;
+        };
+        self.push_clock(self.clock_of(print_time + first), dir, sink);
+        let Some((&last, middle)) = rest.split_last() else {
+            return;
+        };
+        let mut clocks = [0u64; RUN_CAPACITY];
+        let mut count = 0;
+        if let Some((clock, _)) = self.pending.take() {
+            clocks[0] = clock.max(self.last_emitted);
+            count = 1;
+        }
+        let mut previous = if count == 1 { clocks[0] } else { self.last_emitted };
+        for chunk in middle.chunks(RUN_CAPACITY - 1) {
+            for &t in chunk {
+                previous = previous.max(self.clock_of(print_time + t));
+                clocks[count] = previous;
+                count += 1;
+            }
+            sink.steps(&clocks[..count], dir);
+            count = 0;
+        }
+        if count > 0 {
+            sink.steps(&clocks[..count], dir);
+        }
+        self.last_emitted = previous;
+        self.pending = Some((self.clock_of(print_time + last), dir));
+    }
+
+    #[inline]
+    fn push_clock<S: StepSink + ?Sized>(&mut self, clock: u64, dir: bool, sink: &mut S) {
         if let Some((pending_clock, pending_dir)) = self.pending {
             if pending_dir != dir
                 && ((clock as i64 - pending_clock as i64) as f64) < self.window_ticks

@@ -155,6 +155,13 @@ impl MotorStepper {
         if piece.duration <= 0.0 {
             return Ok(());
         }
+        if let MotorModel::Linear { coeffs } = self.spec.model {
+            if dot3(coeffs, piece.axes_r) == 0.0 {
+                // This motor does not move along the piece (Z during a layer): only a jump can step it.
+                self.settle(dot3(coeffs, piece.start_pos), piece.print_time, sink);
+                return Ok(());
+            }
+        }
         let (spans, count) = monotonic_spans(piece);
         for span in &spans[..count] {
             match self.spec.model {
@@ -188,15 +195,19 @@ impl MotorStepper {
     }
 
     fn validate(&self, piece: &Piece) -> Result<(), StepError> {
-        let finite = piece.print_time.is_finite()
-            && piece.duration.is_finite()
-            && piece.start_v.is_finite()
-            && piece.half_accel.is_finite()
-            && piece
-                .start_pos
-                .iter()
-                .chain(&piece.axes_r)
-                .all(|v| v.is_finite());
+        // A product with zero is 0 for every finite value and NaN otherwise: one test for all twelve values,
+        // which every motor makes on every piece.
+        let zeros = [
+            piece.print_time,
+            piece.duration,
+            piece.start_v,
+            piece.half_accel,
+        ]
+        .iter()
+        .chain(&piece.start_pos)
+        .chain(&piece.axes_r)
+        .fold(0.0, |acc, v| acc + v * 0.0);
+        let finite = zeros == 0.0;
         let reason = if !finite {
             "non-finite value"
         } else if piece.duration < -NEGLIGIBLE_DURATION || piece.print_time < 0.0 {
@@ -334,9 +345,10 @@ impl MotorStepper {
         self.check_commit(fb, sink);
     }
 
-    /// Every step from the commanded position towards `fb` (up or down). Times are found a batch at a time and
-    /// then filtered in order: the divisions and square roots of a batch do not wait on the filter and sink,
-    /// so the CPU overlaps them.
+    /// Every step from the commanded position towards `fb` (up or down), a batch at a time in three tight
+    /// loops: the levels (Klipper's arithmetic on the commanded position), their times, then the filter and
+    /// sink in order. Kept apart, each loop holds its state in registers and the divisions and square roots
+    /// of a batch overlap in the CPU.
     #[inline]
     fn steps_towards<S: StepSink + ?Sized, I: LevelInverse>(
         &mut self,
@@ -346,25 +358,23 @@ impl MotorStepper {
         inverse: &mut I,
         sink: &mut S,
     ) {
-        const BATCH: usize = 32;
         let dir = if up { 1.0 } else { -1.0 };
-        let mut times = [0.0; BATCH];
+        let mut batch = [0.0; STEP_BATCH];
         loop {
             let mut count = 0;
-            while count < BATCH && self.wants_step(fb, up) {
-                let level = if up {
+            while count < STEP_BATCH && self.wants_step(fb, up) {
+                batch[count] = if up {
                     self.up_level()
                 } else {
                     self.down_level()
                 };
-                times[count] = inverse.time_at_level(level, dir);
                 self.advance(up);
                 count += 1;
             }
-            for &t in &times[..count] {
-                self.filter.push(print_time + t, up, sink);
-            }
-            if count < BATCH {
+            let times = &mut batch[..count];
+            inverse.times_at_levels(times, dir);
+            self.filter.push_run(times, print_time, up, sink);
+            if count < STEP_BATCH {
                 return;
             }
         }
@@ -381,7 +391,7 @@ impl MotorStepper {
         let k1 = dot3(k, piece.axes_r);
         let fa = k0 + k1 * span.d0;
         let fb = k0 + k1 * span.d1;
-        let mut inverse = |level: f64, _dir: f64| {
+        let mut inverse = |level: f64| {
             let s = clamp_between((level - k0) / k1, span.d0, span.d1);
             span.time_at(s)
         };
@@ -415,7 +425,7 @@ impl MotorStepper {
             // Which side of the closest point this part lies on.
             let side = if sa + sb >= 2.0 * s_turn { 1.0 } else { -1.0 };
             let ta = span.time_at(sa);
-            let mut inverse = |level: f64, _dir: f64| {
+            let mut inverse = |level: f64| {
                 let along = ((level - perp) * (level + perp)).max(0.0).sqrt() * inv_speed_factor;
                 span.time_at(clamp_between(s_turn + side * along, sa, sb))
             };
@@ -492,8 +502,7 @@ impl MotorStepper {
         let base = self.bed_angle - span.d0;
         let fa = self.bed_angle;
         let fb = base + span.d1;
-        let mut inverse =
-            |level: f64, _dir: f64| span.time_at(clamp_between(level - base, span.d0, span.d1));
+        let mut inverse = |level: f64| span.time_at(clamp_between(level - base, span.d0, span.d1));
         self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
     }
@@ -505,16 +514,21 @@ fn is_turn_in_place(piece: &Piece, centre: [f64; 2]) -> bool {
     piece.axes_r == [0.0; 3] && piece.start_pos[0] == centre[0] && piece.start_pos[1] == centre[1]
 }
 
-/// Maps a position level to the time (relative to the piece start) at which the motor reaches it.
-/// `dir` is +1 while levels increase, −1 while they decrease.
+/// Steps handled per batch in [`MotorStepper::steps_towards`].
+const STEP_BATCH: usize = 64;
+
+/// Maps position levels to the times (relative to the piece start) at which the motor reaches them, in
+/// place. `dir` is +1 while levels increase, −1 while they decrease; levels come one step apart, in order.
 pub(crate) trait LevelInverse {
-    fn time_at_level(&mut self, level: f64, dir: f64) -> f64;
+    fn times_at_levels(&mut self, levels: &mut [f64], dir: f64);
 }
 
-impl<F: FnMut(f64, f64) -> f64> LevelInverse for F {
+impl<F: FnMut(f64) -> f64> LevelInverse for F {
     #[inline]
-    fn time_at_level(&mut self, level: f64, dir: f64) -> f64 {
-        self(level, dir)
+    fn times_at_levels(&mut self, levels: &mut [f64], _dir: f64) {
+        for level in levels {
+            *level = self(*level);
+        }
     }
 }
 
@@ -605,25 +619,33 @@ impl<'a> AngleInverse<'a> {
 
 impl LevelInverse for AngleInverse<'_> {
     #[inline]
-    fn time_at_level(&mut self, level: f64, dir: f64) -> f64 {
-        let [c, s] = if self.since_anchor < Self::REANCHOR {
-            // sin is odd and cos even, so the rotation by one step down is exactly the conjugate.
-            let [rc, rs] = [self.step_rotation[0], dir * self.step_rotation[1]];
-            let [c, s] = self.cos_sin;
-            self.since_anchor += 1;
-            [c * rc - s * rs, s * rc + c * rs]
+    fn times_at_levels(&mut self, levels: &mut [f64], dir: f64) {
+        // sin is odd and cos even, so the rotation by one step down is exactly the conjugate.
+        let [rc, rs] = [self.step_rotation[0], dir * self.step_rotation[1]];
+        let (p, u) = (self.line.p, self.line.u);
+        let span = *self.span;
+        let (lo, hi) = if span.d0 <= span.d1 {
+            (span.d0, span.d1)
         } else {
-            self.since_anchor = 1;
-            let (s, c) = level.sin_cos();
-            [c, s]
+            (span.d1, span.d0)
         };
+        let [mut c, mut s] = self.cos_sin;
+        let mut since_anchor = self.since_anchor;
+        for level in levels {
+            if since_anchor < Self::REANCHOR {
+                [c, s] = [c * rc - s * rs, s * rc + c * rs];
+                since_anchor += 1;
+            } else {
+                (s, c) = level.sin_cos();
+                since_anchor = 1;
+            }
+            let num = c * p[1] - s * p[0];
+            let den = c * u[1] - s * u[0];
+            let dist = if den != 0.0 { -num / den } else { span.d0 };
+            *level = span.time_at(clamp_ordered(dist, lo, hi));
+        }
         self.cos_sin = [c, s];
-        let l = self.line;
-        let num = c * l.p[1] - s * l.p[0];
-        let den = c * l.u[1] - s * l.u[0];
-        let dist = if den != 0.0 { -num / den } else { self.span.d0 };
-        self.span
-            .time_at(clamp_between(dist, self.span.d0, self.span.d1))
+        self.since_anchor = since_anchor;
     }
 }
 
@@ -632,17 +654,18 @@ fn dot3(a: Vec3, b: Vec3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-/// Clamp `x` into the closed range between `a` and `b` (in either order); NaN becomes `a`.
+/// Clamp `x` into the closed range between `a` and `b` (in either order); NaN becomes the lower end.
+/// Written as comparisons and selects, which compile to single min/max instructions (`f64::min`/`max`
+/// add NaN handling): it runs on every step.
 #[inline]
 pub(crate) fn clamp_between(x: f64, a: f64, b: f64) -> f64 {
     let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
-    if x >= lo && x <= hi {
-        x
-    } else if x > hi {
-        hi
-    } else if x < lo {
-        lo
-    } else {
-        a
-    }
+    clamp_ordered(x, lo, hi)
+}
+
+/// Clamp `x` into `[lo, hi]` (`lo ≤ hi`); NaN becomes `lo`.
+#[inline]
+pub(crate) fn clamp_ordered(x: f64, lo: f64, hi: f64) -> f64 {
+    let above = if x > lo { x } else { lo };
+    if above < hi { above } else { hi }
 }

@@ -10,6 +10,15 @@ pub struct Step {
 /// Receiver of one motor's final (filtered) steps, in non-decreasing clock order.
 pub trait StepSink {
     fn step(&mut self, clock: u64, dir: bool);
+
+    /// Several steps in one direction, in order (step generation hands runs over this way; a sink with
+    /// per-step state can keep it in registers over the run).
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        for &clock in clocks {
+            self.step(clock, dir);
+        }
+    }
 }
 
 impl StepSink for Vec<Step> {
@@ -23,6 +32,11 @@ impl<S: StepSink + ?Sized> StepSink for &mut S {
     #[inline]
     fn step(&mut self, clock: u64, dir: bool) {
         (**self).step(clock, dir);
+    }
+
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        (**self).steps(clocks, dir);
     }
 }
 
@@ -52,5 +66,11 @@ impl<A: StepSink, B: StepSink> StepSink for Tee<A, B> {
     fn step(&mut self, clock: u64, dir: bool) {
         self.0.step(clock, dir);
         self.1.step(clock, dir);
+    }
+
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        self.0.steps(clocks, dir);
+        self.1.steps(clocks, dir);
     }
 }

@@ -8,12 +8,15 @@ pub struct StepStats {
     window_ticks: u64,
     steps: u64,
     net: i64,
-    first_clock: Option<u64>,
+    /// Clock of the first step (meaningful once `steps > 0`).
+    first_clock: u64,
     last_clock: u64,
-    min_interval: Option<u64>,
+    /// Smallest gap so far (`u64::MAX` before the second step).
+    min_interval: u64,
     /// The most recent clocks, step `i` at `recent[i & (len − 1)]`; the length is a power of two above
     /// `peak_in_window`, so the step `peak_in_window` places back is always still there.
     recent: Vec<u64>,
+    /// Most steps in one window (meaningful once `steps > 0`: the first step makes a window of one).
     peak_in_window: usize,
 }
 
@@ -42,17 +45,19 @@ impl StepStats {
             window_ticks: (clock_hz * 1e-3).round().max(1.0) as u64,
             steps: 0,
             net: 0,
-            first_clock: None,
+            first_clock: 0,
             last_clock: 0,
-            min_interval: None,
+            min_interval: u64::MAX,
             recent: vec![0; 16],
-            peak_in_window: 0,
+            peak_in_window: 1,
         }
     }
 
     /// The finished numbers; `filtered_pairs` comes from the motor (see `MotorStepper::filtered_pairs`).
     pub fn summary(&self, clock_hz: f64, filtered_pairs: u64) -> MotorStats {
-        let peak_rate_min_interval = match self.min_interval {
+        let any = self.steps > 0;
+        let min_interval = (self.steps > 1).then_some(self.min_interval);
+        let peak_rate_min_interval = match min_interval {
             Some(0) => f64::INFINITY,
             Some(ticks) => clock_hz / ticks as f64,
             None => 0.0,
@@ -60,38 +65,21 @@ impl StepStats {
         MotorStats {
             steps: self.steps,
             net_steps: self.net,
-            first_clock: self.first_clock,
-            last_clock: self.first_clock.map(|_| self.last_clock),
-            min_interval_ticks: self.min_interval,
+            first_clock: any.then_some(self.first_clock),
+            last_clock: any.then_some(self.last_clock),
+            min_interval_ticks: min_interval,
             peak_rate_min_interval,
-            peak_rate_1ms: self.peak_in_window as f64 * 1e3,
+            peak_rate_1ms: if any {
+                self.peak_in_window as f64 * 1e3
+            } else {
+                0.0
+            },
             filtered_pairs,
         }
     }
 }
 
 impl StepStats {
-    /// Most steps in a window (clock − 1 ms, clock] ending at any step so far, updated with the step `index`.
-    ///
-    /// A window ending at a step holds at most one step more than the window ending at the step before, so
-    /// the peak grows by one exactly when the step `peak` places back is still inside the new window: one
-    /// comparison per step, whatever the step rate.
-    #[inline]
-    fn update_peak(&mut self, index: usize, clock: u64) {
-        let mask = self.recent.len() - 1;
-        let peak = self.peak_in_window;
-        if index >= peak
-            && (peak == 0 || self.recent[(index - peak) & mask] + self.window_ticks > clock)
-        {
-            self.peak_in_window += 1;
-            if self.peak_in_window >= self.recent.len() {
-                self.grow_recent(index);
-            }
-        }
-        let mask = self.recent.len() - 1;
-        self.recent[index & mask] = clock;
-    }
-
     /// Double the ring of recent clocks, keeping the steps before `index` at their places.
     #[cold]
     fn grow_recent(&mut self, index: usize) {
@@ -107,16 +95,45 @@ impl StepStats {
 impl StepSink for StepStats {
     #[inline]
     fn step(&mut self, clock: u64, dir: bool) {
-        if self.first_clock.is_none() {
-            self.first_clock = Some(clock);
-        } else {
-            let gap = clock.saturating_sub(self.last_clock);
-            self.min_interval = Some(self.min_interval.map_or(gap, |m| m.min(gap)));
+        self.steps(&[clock], dir);
+    }
+
+    /// The peak is the most steps in a window (clock − 1 ms, clock] ending at any step. A window ending at a
+    /// step holds at most one step more than the window ending at the step before, so the peak grows by one
+    /// exactly when the step `peak` places back is still inside the new window: one comparison per step,
+    /// whatever the step rate (`peak ≤ index` there, as only `index` steps came before).
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        let Some(&first) = clocks.first() else {
+            return;
+        };
+        let mut index = self.steps as usize;
+        if index == 0 {
+            self.first_clock = first;
+            self.last_clock = first;
         }
-        self.last_clock = clock;
-        self.update_peak(self.steps as usize, clock);
-        self.steps += 1;
-        self.net += if dir { 1 } else { -1 };
+        let (mut last, mut min_interval, mut peak) =
+            (self.last_clock, self.min_interval, self.peak_in_window);
+        for &clock in clocks {
+            if index > 0 {
+                min_interval = min_interval.min(clock.saturating_sub(last));
+                let mask = self.recent.len() - 1;
+                if self.recent[(index - peak) & mask] + self.window_ticks > clock {
+                    peak += 1;
+                    if peak >= self.recent.len() {
+                        self.grow_recent(index);
+                    }
+                }
+            }
+            let mask = self.recent.len() - 1;
+            self.recent[index & mask] = clock;
+            last = clock;
+            index += 1;
+        }
+        (self.last_clock, self.min_interval, self.peak_in_window) = (last, min_interval, peak);
+        self.steps = index as u64;
+        let count = clocks.len() as i64;
+        self.net += if dir { count } else { -count };
     }
 }
 

@@ -3,7 +3,8 @@
 
 use trapq::Piece;
 
-use crate::motor::clamp_between;
+use crate::motor::clamp_ordered;
+
 
 /// A time range of a piece over which the travelled distance changes monotonically.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,7 +52,8 @@ impl Span {
                 (root - v0) / (2.0 * h)
             }
         };
-        clamp_between(t, self.t0, self.t1)
+        // t0 ≤ t1 by construction.
+        clamp_ordered(t, self.t0, self.t1)
     }
 }
 

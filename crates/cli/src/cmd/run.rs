@@ -83,6 +83,14 @@ impl StepSink for MotorSink {
             file.step(clock, dir);
         }
     }
+
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        self.stats.steps(clocks, dir);
+        if let Some(file) = &mut self.file {
+            file.steps(clocks, dir);
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]

@@ -20,6 +20,8 @@ pub struct StepFilter {
     pending: Option<(u64, bool)>,
     filtered_pairs: u64,
     last_emitted: u64,
+    /// Clocks of a run on their way to the sink (kept here so that no buffer is zeroed per run).
+    run: [u64; RUN_CAPACITY],
 }
 
 impl StepFilter {
@@ -30,6 +32,7 @@ impl StepFilter {
             pending: None,
             filtered_pairs: 0,
             last_emitted: 0,
+            run: [0; RUN_CAPACITY],
         }
     }
 
@@ -66,24 +69,27 @@ impl StepFilter {
         let Some((&last, middle)) = rest.split_last() else {
             return;
         };
-        let mut clocks = [0u64; RUN_CAPACITY];
         let mut count = 0;
         if let Some((clock, _)) = self.pending.take() {
-            clocks[0] = clock.max(self.last_emitted);
+            self.run[0] = clock.max(self.last_emitted);
             count = 1;
         }
-        let mut previous = if count == 1 { clocks[0] } else { self.last_emitted };
+        let mut previous = if count == 1 {
+            self.run[0]
+        } else {
+            self.last_emitted
+        };
         for chunk in middle.chunks(RUN_CAPACITY - 1) {
             for &t in chunk {
                 previous = previous.max(self.clock_of(print_time + t));
-                clocks[count] = previous;
+                self.run[count] = previous;
                 count += 1;
             }
-            sink.steps(&clocks[..count], dir);
+            sink.steps(&self.run[..count], dir);
             count = 0;
         }
         if count > 0 {
-            sink.steps(&clocks[..count], dir);
+            sink.steps(&self.run[..count], dir);
         }
         self.last_emitted = previous;
         self.pending = Some((self.clock_of(print_time + last), dir));

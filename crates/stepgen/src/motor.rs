@@ -99,6 +99,8 @@ pub struct MotorStepper {
     bed_angle: f64,
     /// `(cos, sin)` of one step: a bed's levels advance by this rotation (computed once, not per stretch).
     step_rotation: [f64; 2],
+    /// Levels, then times, of the steps being generated (kept here so that no buffer is zeroed per stretch).
+    batch: [f64; STEP_BATCH],
 }
 
 impl MotorStepper {
@@ -126,6 +128,7 @@ impl MotorStepper {
             general,
             bed_angle: start_position,
             step_rotation: [step_cos, step_sin],
+            batch: [0.0; STEP_BATCH],
         }
     }
 
@@ -359,11 +362,10 @@ impl MotorStepper {
         sink: &mut S,
     ) {
         let dir = if up { 1.0 } else { -1.0 };
-        let mut batch = [0.0; STEP_BATCH];
         loop {
             let mut count = 0;
             while count < STEP_BATCH && self.wants_step(fb, up) {
-                batch[count] = if up {
+                self.batch[count] = if up {
                     self.up_level()
                 } else {
                     self.down_level()
@@ -371,7 +373,7 @@ impl MotorStepper {
                 self.advance(up);
                 count += 1;
             }
-            let times = &mut batch[..count];
+            let times = &mut self.batch[..count];
             inverse.times_at_levels(times, dir);
             self.filter.push_run(times, print_time, up, sink);
             if count < STEP_BATCH {
@@ -631,6 +633,7 @@ impl LevelInverse for AngleInverse<'_> {
         };
         let [mut c, mut s] = self.cos_sin;
         let mut since_anchor = self.since_anchor;
+        let cruise_speed = span.cruise_speed();
         for level in levels {
             if since_anchor < Self::REANCHOR {
                 [c, s] = [c * rc - s * rs, s * rc + c * rs];
@@ -641,8 +644,14 @@ impl LevelInverse for AngleInverse<'_> {
             }
             let num = c * p[1] - s * p[0];
             let den = c * u[1] - s * u[0];
-            let dist = if den != 0.0 { -num / den } else { span.d0 };
-            *level = span.time_at(clamp_ordered(dist, lo, hi));
+            *level = match cruise_speed {
+                // distance / speed in one division (the clamp in time equals the clamp in distance here).
+                Some(v) if den != 0.0 => span.clamp_time(-num / (den * v)),
+                _ => {
+                    let dist = if den != 0.0 { -num / den } else { span.d0 };
+                    span.time_at(clamp_ordered(dist, lo, hi))
+                }
+            };
         }
         self.cos_sin = [c, s];
         self.since_anchor = since_anchor;

@@ -23,6 +23,18 @@ pub(crate) struct Span {
 }
 
 impl Span {
+    /// The constant speed of a cruise span (no acceleration, moving), if it is one.
+    #[inline]
+    pub fn cruise_speed(&self) -> Option<f64> {
+        (self.half_accel == 0.0 && self.v0 != 0.0).then_some(self.v0)
+    }
+
+    /// Keep a time inside the span (a computed time only leaves it by rounding).
+    #[inline]
+    pub fn clamp_time(&self, t: f64) -> f64 {
+        clamp_ordered(t, self.t0, self.t1)
+    }
+
     /// Largest |speed| in the span (mm/s).
     pub fn max_speed(&self) -> f64 {
         let va = self.v0 + 2.0 * self.half_accel * self.t0;
@@ -52,8 +64,7 @@ impl Span {
                 (root - v0) / (2.0 * h)
             }
         };
-        // t0 ≤ t1 by construction.
-        clamp_ordered(t, self.t0, self.t1)
+        self.clamp_time(t)
     }
 }
 

@@ -461,7 +461,11 @@ impl MotorStepper {
         // Swept angle along a line is below π; its sign is the sign of cross(P, U) times the travel.
         let sweep = ((span.d1 - span.d0) * line.cross).atan2(qa[0] * qb[0] + qa[1] * qb[1]);
         let fb = fa + sweep;
-        let mut inverse = AngleInverse::new(&line, span, self.step_rotation);
+        let mut inverse = AngleInverse {
+            line: &line,
+            span,
+            step_rotation: self.step_rotation,
+        };
         self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
         Ok(())
@@ -593,68 +597,55 @@ impl PlaneLine {
 
 /// Bed angle → distance: the line meets the ray at angle θ where cross((cos θ, sin θ), P + U·s) = 0.
 /// Within one monotonic stretch the levels come one step apart in one direction, so (cos θ, sin θ) advance
-/// by a fixed rotation; the exact value is recomputed every [`AngleInverse::REANCHOR`] steps so rounding
-/// cannot accumulate (measured drift at most 1.3e-14 after 63 rotations).
+/// by a fixed rotation; the exact value is computed at the first level of every batch (at most
+/// [`STEP_BATCH`] levels), so rounding cannot accumulate (measured drift at most 1.3e-14 after 63 rotations).
 struct AngleInverse<'a> {
     line: &'a PlaneLine,
     span: &'a Span,
     /// `(cos, sin)` of one step up.
     step_rotation: [f64; 2],
-    cos_sin: [f64; 2],
-    /// Levels since `cos_sin` was last computed exactly (`u32::MAX` before the first level).
-    since_anchor: u32,
-}
-
-impl<'a> AngleInverse<'a> {
-    const REANCHOR: u32 = 64;
-
-    fn new(line: &'a PlaneLine, span: &'a Span, step_rotation: [f64; 2]) -> Self {
-        AngleInverse {
-            line,
-            span,
-            step_rotation,
-            cos_sin: [1.0, 0.0],
-            since_anchor: u32::MAX,
-        }
-    }
 }
 
 impl LevelInverse for AngleInverse<'_> {
     #[inline]
     fn times_at_levels(&mut self, levels: &mut [f64], dir: f64) {
+        let Some(&first) = levels.first() else {
+            return;
+        };
         // sin is odd and cos even, so the rotation by one step down is exactly the conjugate.
         let [rc, rs] = [self.step_rotation[0], dir * self.step_rotation[1]];
+        let (mut s, mut c) = first.sin_cos();
         let (p, u) = (self.line.p, self.line.u);
         let span = *self.span;
-        let (lo, hi) = if span.d0 <= span.d1 {
-            (span.d0, span.d1)
-        } else {
-            (span.d1, span.d0)
-        };
-        let [mut c, mut s] = self.cos_sin;
-        let mut since_anchor = self.since_anchor;
-        let cruise_speed = span.cruise_speed();
-        for level in levels {
-            if since_anchor < Self::REANCHOR {
-                [c, s] = [c * rc - s * rs, s * rc + c * rs];
-                since_anchor += 1;
-            } else {
-                (s, c) = level.sin_cos();
-                since_anchor = 1;
-            }
+        // Where the level's ray meets the line: numerator and denominator of the distance −num/den.
+        let mut next_ray = || {
             let num = c * p[1] - s * p[0];
             let den = c * u[1] - s * u[0];
-            *level = match cruise_speed {
-                // distance / speed in one division (the clamp in time equals the clamp in distance here).
-                Some(v) if den != 0.0 => span.clamp_time(-num / (den * v)),
-                _ => {
-                    let dist = if den != 0.0 { -num / den } else { span.d0 };
-                    span.time_at(clamp_ordered(dist, lo, hi))
-                }
+            [c, s] = [c * rc - s * rs, s * rc + c * rs];
+            (num, den)
+        };
+        if let Some(v) = span.cruise_speed() {
+            // distance / speed in one division (the clamp in time equals the clamp in distance here).
+            for level in levels {
+                let (num, den) = next_ray();
+                *level = if den != 0.0 {
+                    span.clamp_time(-num / (den * v))
+                } else {
+                    span.time_at(span.d0)
+                };
+            }
+        } else {
+            let (lo, hi) = if span.d0 <= span.d1 {
+                (span.d0, span.d1)
+            } else {
+                (span.d1, span.d0)
             };
+            for level in levels {
+                let (num, den) = next_ray();
+                let dist = if den != 0.0 { -num / den } else { span.d0 };
+                *level = span.time_at(clamp_ordered(dist, lo, hi));
+            }
         }
-        self.cos_sin = [c, s];
-        self.since_anchor = since_anchor;
     }
 }
 

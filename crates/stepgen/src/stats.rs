@@ -80,15 +80,44 @@ impl StepStats {
 }
 
 impl StepStats {
-    /// Double the ring of recent clocks, keeping the steps before `index` at their places.
+    /// Double the ring of recent clocks, keeping the steps before `end` at their places.
     #[cold]
-    fn grow_recent(&mut self, index: usize) {
+    fn grow_recent(&mut self, end: usize) {
         let old_len = self.recent.len();
         let mut grown = vec![0; 2 * old_len];
-        for i in index.saturating_sub(old_len)..index {
+        for i in end.saturating_sub(old_len)..end {
             grown[i & (2 * old_len - 1)] = self.recent[i & (old_len - 1)];
         }
         self.recent = grown;
+    }
+
+    /// The peak is the most steps in a window (clock − 1 ms, clock] ending at any step. A window ending at a
+    /// step holds at most one step more than the window ending at the step before, so the peak grows by one
+    /// exactly when the step `peak` places back is still inside the new window: one comparison per step,
+    /// whatever the step rate. `clocks` follow at least one earlier step, so `peak ≤ index` throughout.
+    fn update_peak(&mut self, clocks: &[u64]) {
+        let mut index = self.steps as usize;
+        let mut peak = self.peak_in_window;
+        let mut rest = clocks;
+        while !rest.is_empty() {
+            let ring = &mut self.recent[..];
+            let mask = ring.len() - 1;
+            let mut taken = 0;
+            for &clock in rest {
+                peak += usize::from(ring[(index - peak) & mask] + self.window_ticks > clock);
+                ring[index & mask] = clock;
+                index += 1;
+                taken += 1;
+                if peak >= ring.len() {
+                    break;
+                }
+            }
+            rest = &rest[taken..];
+            if peak >= self.recent.len() {
+                self.grow_recent(index);
+            }
+        }
+        self.peak_in_window = peak;
     }
 }
 
@@ -98,40 +127,35 @@ impl StepSink for StepStats {
         self.steps(&[clock], dir);
     }
 
-    /// The peak is the most steps in a window (clock − 1 ms, clock] ending at any step. A window ending at a
-    /// step holds at most one step more than the window ending at the step before, so the peak grows by one
-    /// exactly when the step `peak` places back is still inside the new window: one comparison per step,
-    /// whatever the step rate (`peak ≤ index` there, as only `index` steps came before).
     #[inline]
     fn steps(&mut self, clocks: &[u64], dir: bool) {
-        let Some(&first) = clocks.first() else {
+        let Some((&first, later)) = clocks.split_first() else {
             return;
         };
-        let mut index = self.steps as usize;
-        if index == 0 {
+        let rest = if self.steps == 0 {
+            // The first step: a window of one, no interval yet.
             self.first_clock = first;
+            self.recent[0] = first;
+            self.steps = 1;
+            later
+        } else {
+            clocks
+        };
+        let Some(&last) = rest.last() else {
             self.last_clock = first;
+            self.net += if dir { 1 } else { -1 };
+            return;
+        };
+        let mut previous = self.last_clock;
+        let mut min_interval = self.min_interval;
+        for &clock in rest {
+            min_interval = min_interval.min(clock.saturating_sub(previous));
+            previous = clock;
         }
-        let (mut last, mut min_interval, mut peak) =
-            (self.last_clock, self.min_interval, self.peak_in_window);
-        for &clock in clocks {
-            if index > 0 {
-                min_interval = min_interval.min(clock.saturating_sub(last));
-                let mask = self.recent.len() - 1;
-                if self.recent[(index - peak) & mask] + self.window_ticks > clock {
-                    peak += 1;
-                    if peak >= self.recent.len() {
-                        self.grow_recent(index);
-                    }
-                }
-            }
-            let mask = self.recent.len() - 1;
-            self.recent[index & mask] = clock;
-            last = clock;
-            index += 1;
-        }
-        (self.last_clock, self.min_interval, self.peak_in_window) = (last, min_interval, peak);
-        self.steps = index as u64;
+        self.min_interval = min_interval;
+        self.update_peak(rest);
+        self.last_clock = last;
+        self.steps += rest.len() as u64;
         let count = clocks.len() as i64;
         self.net += if dir { count } else { -count };
     }

@@ -22,6 +22,8 @@ pub enum AxisMap {
         planar: [usize; 2],
         z: Option<usize>,
         count: usize,
+        /// Set when the two output axes are an ideal polar radius and angle (closed-form chord bound).
+        polar: Option<PolarAxes>,
     },
     /// Output = Cartesian XY for a firmware that believes in `ideal` while the machine is `real`:
     /// `xy' = ideal.forward(real.inverse(p))`.
@@ -51,11 +53,13 @@ impl AxisMap {
                 }
             }
         };
+        let polar = polar_axes(kin.as_ref(), planar);
         Ok(AxisMap::Motors {
             kin,
             planar,
             z,
             count,
+            polar,
         })
     }
 
@@ -131,6 +135,7 @@ impl AxisMap {
                 planar,
                 z: z_index,
                 count,
+                ..
             } => {
                 let mut m = [0.0; MAX_MOTORS];
                 m[planar[0]] = a[0];
@@ -160,6 +165,14 @@ impl AxisMap {
         }
     }
 
+    /// The output axes as an ideal polar radius and angle, if they are.
+    pub fn polar(&self) -> Option<PolarAxes> {
+        match self {
+            AxisMap::Motors { polar, .. } => *polar,
+            AxisMap::Corrected { .. } => None,
+        }
+    }
+
     /// The polar rotation centre, where a motor declares itself an angle about a point.
     pub fn centre(&self) -> Option<[f64; 2]> {
         let kin = self.machine();
@@ -175,6 +188,26 @@ impl AxisMap {
             AxisMap::Motors { kin, .. } => kin.as_ref(),
             AxisMap::Corrected { real, .. } => real.as_ref(),
         }
+    }
+}
+
+/// Output axes that are exactly `radius = |p − centre|` and `angle = atan2(p − centre)` (unwrapped).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PolarAxes {
+    pub centre: [f64; 2],
+    /// Which output axis (0 or 1) is the radius; the other is the angle.
+    pub radius: usize,
+}
+
+fn polar_axes(kin: &dyn Kinematics, planar: [usize; 2]) -> Option<PolarAxes> {
+    match (kin.motor_map(planar[0]), kin.motor_map(planar[1])) {
+        (MotorMap::Radius { centre: c }, MotorMap::Angle { centre }) if c == centre => {
+            Some(PolarAxes { centre, radius: 0 })
+        }
+        (MotorMap::Angle { centre: c }, MotorMap::Radius { centre }) if c == centre => {
+            Some(PolarAxes { centre, radius: 1 })
+        }
+        _ => None,
     }
 }
 

@@ -3,9 +3,31 @@
 //! Values are handled as integers in units of `10^-decimals`, which is also how the converter tracks what
 //! it has written (so totals are exact sums of written values).
 
+/// `10^d` for d = 0..=18 (decimals go up to 12 for feeds; integer parts use the rest).
+const POW10: [u64; 19] = {
+    let mut table = [1u64; 19];
+    let mut i = 1;
+    while i < 19 {
+        table[i] = table[i - 1] * 10;
+        i += 1;
+    }
+    table
+};
+
+/// Two-digit strings "00".."99", so digits are written in pairs.
+const PAIRS: [[u8; 2]; 100] = {
+    let mut table = [[0u8; 2]; 100];
+    let mut i = 0;
+    while i < 100 {
+        table[i] = [b'0' + (i / 10) as u8, b'0' + (i % 10) as u8];
+        i += 1;
+    }
+    table
+};
+
 /// `10^d` for the supported decimal counts.
 pub fn scale(decimals: u8) -> f64 {
-    10f64.powi(i32::from(decimals))
+    POW10[usize::from(decimals.min(18))] as f64
 }
 
 /// `value` rounded to `decimals` places, as an integer count of `10^-decimals`.
@@ -17,48 +39,111 @@ pub fn to_units(value: f64, decimals: u8) -> i64 {
 
 /// Appends ` <letter><units·10^-decimals>` to `out`.
 pub fn push_word(out: &mut Vec<u8>, letter: char, units: i64, decimals: u8) {
-    out.push(b' ');
-    let mut buf = [0u8; 4];
-    out.extend_from_slice(letter.encode_utf8(&mut buf).as_bytes());
+    let mut buf = [b' ', 0, 0, 0, 0];
+    let len = letter.encode_utf8(&mut buf[1..]).len();
+    out.extend_from_slice(&buf[..=len]);
     push_units(out, units, decimals);
 }
 
 /// Appends the decimal text of `units · 10^-decimals`.
 pub fn push_units(out: &mut Vec<u8>, units: i64, decimals: u8) {
-    // Built right to left in one stack buffer: sign, integer digits, point, trimmed fraction.
-    let mut tmp = [0u8; 48];
-    let mut i = tmp.len();
-    let magnitude = units.unsigned_abs();
-    let divisor = 10u64.pow(u32::from(decimals));
-    let mut frac = magnitude % divisor;
-    let mut digits = decimals;
-    if frac != 0 {
-        while frac.is_multiple_of(10) {
-            frac /= 10;
-            digits -= 1;
-        }
-        for _ in 0..digits {
-            i -= 1;
-            tmp[i] = b'0' + (frac % 10) as u8;
-            frac /= 10;
-        }
-        i -= 1;
-        tmp[i] = b'.';
-    }
-    let mut whole = magnitude / divisor;
-    loop {
-        i -= 1;
-        tmp[i] = b'0' + (whole % 10) as u8;
-        whole /= 10;
-        if whole == 0 {
-            break;
+    let mut line = LineBuf::default();
+    line.number(units, decimals);
+    out.extend_from_slice(line.as_bytes());
+}
+
+/// One output line assembled in place (numbers written straight into it), then written with one call.
+#[derive(Debug, Clone)]
+pub struct LineBuf {
+    bytes: [u8; 256],
+    len: usize,
+}
+
+impl Default for LineBuf {
+    fn default() -> Self {
+        LineBuf {
+            bytes: [0; 256],
+            len: 0,
         }
     }
-    if units < 0 {
-        i -= 1;
-        tmp[i] = b'-';
+}
+
+/// Room one number may need: sign, 19 integer digits, point, 18 decimals.
+const NUMBER_MAX: usize = 40;
+
+impl LineBuf {
+    pub fn clear(&mut self) {
+        self.len = 0;
     }
-    out.extend_from_slice(&tmp[i..]);
+
+    /// Appends `bytes`; a line never holds more than a command and five words, far below the capacity
+    /// (anything beyond it would be cut, never a panic).
+    pub fn push(&mut self, bytes: &[u8]) {
+        let end = (self.len + bytes.len()).min(self.bytes.len());
+        self.bytes[self.len..end].copy_from_slice(&bytes[..end - self.len]);
+        self.len = end;
+    }
+
+    /// Appends ` <letter><units·10^-decimals>`.
+    pub fn word(&mut self, letter: char, units: i64, decimals: u8) {
+        let mut head = [b' ', 0, 0, 0, 0];
+        let len = letter.encode_utf8(&mut head[1..]).len();
+        self.push(&head[..=len]);
+        self.number(units, decimals);
+    }
+
+    /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`), with integer
+    /// arithmetic only, two digits at a time from the right.
+    pub fn number(&mut self, units: i64, decimals: u8) {
+        if self.len + NUMBER_MAX > self.bytes.len() {
+            return;
+        }
+        let decimals = usize::from(decimals.min(18));
+        let magnitude = units.unsigned_abs();
+        let (whole, mut frac) = (magnitude / POW10[decimals], magnitude % POW10[decimals]);
+        let mut frac_digits = 0;
+        if frac != 0 {
+            frac_digits = decimals;
+            while frac % 10 == 0 {
+                frac /= 10;
+                frac_digits -= 1;
+            }
+        }
+        let whole_digits = POW10[1..].iter().take_while(|&&p| whole >= p).count() + 1;
+        let sign = usize::from(units < 0);
+        let point = usize::from(frac_digits > 0);
+        let end = self.len + sign + whole_digits + point + frac_digits;
+        let out = &mut self.bytes[self.len..end];
+        if sign == 1 {
+            out[0] = b'-';
+        }
+        let digits_end = out.len();
+        write_digits(&mut out[digits_end - frac_digits..], frac);
+        if point == 1 {
+            out[sign + whole_digits] = b'.';
+        }
+        write_digits(&mut out[sign..sign + whole_digits], whole);
+        self.len = end;
+    }
+
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.bytes[..self.len]
+    }
+}
+
+/// Fills `out` with the last `out.len()` decimal digits of `value`, zero-padded.
+fn write_digits(out: &mut [u8], mut value: u64) {
+    let mut i = out.len();
+    while i >= 2 {
+        let [a, b] = PAIRS[(value % 100) as usize];
+        out[i - 2] = a;
+        out[i - 1] = b;
+        value /= 100;
+        i -= 2;
+    }
+    if i == 1 {
+        out[0] = b'0' + (value % 10) as u8;
+    }
 }
 
 /// Decimals for a feed value so that its relative rounding error stays below 1e-7.
@@ -102,6 +187,46 @@ mod tests {
         for v in [0.0, 1e-5, -359.999999, 12345.678901, 7.0] {
             let parsed: f64 = text(v, 6).parse().unwrap_or(f64::NAN);
             assert!((parsed - v).abs() <= 0.5e-6, "{v} -> {parsed}");
+        }
+    }
+
+    #[test]
+    fn integer_writer_matches_float_formatting() {
+        for units in [
+            0i64,
+            1,
+            -1,
+            9,
+            10,
+            99,
+            100,
+            12345,
+            -98765,
+            1_000_000,
+            i64::MAX,
+            i64::MIN + 1,
+        ] {
+            for decimals in [0u8, 1, 3, 6, 9, 12] {
+                let mut out = Vec::new();
+                push_units(&mut out, units, decimals);
+                let text = String::from_utf8(out).unwrap_or_default();
+                let expected = if decimals == 0 {
+                    units.to_string()
+                } else {
+                    let d = usize::from(decimals);
+                    let m = units.unsigned_abs().to_string();
+                    let m = format!("{m:0>w$}", w = d + 1);
+                    let (whole, frac) = m.split_at(m.len() - d);
+                    let frac = frac.trim_end_matches('0');
+                    let sign = if units < 0 { "-" } else { "" };
+                    if frac.is_empty() {
+                        format!("{sign}{whole}")
+                    } else {
+                        format!("{sign}{whole}.{frac}")
+                    }
+                };
+                assert_eq!(text, expected, "{units} at {decimals}");
+            }
         }
     }
 

@@ -31,6 +31,7 @@
 //! ```
 
 pub mod axes;
+pub mod bound;
 pub mod converter;
 pub mod correction;
 pub mod error;

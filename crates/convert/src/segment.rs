@@ -12,6 +12,7 @@
 use kinematics::{MotorUnit, ReachError};
 
 use crate::axes::AxisMap;
+use crate::bound::polar_line_bound;
 use crate::path::Path;
 
 /// Largest turn of a rotary output axis in one piece (rad).
@@ -67,6 +68,15 @@ pub fn chord_deviation(
     Ok(worst)
 }
 
+/// Allowed deviation of a piece, per way of measuring it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Budget {
+    /// For a guaranteed bound ([`crate::bound`]).
+    pub bound: f64,
+    /// For the probe estimate, which may miss the true peak by a few percent.
+    pub probe: f64,
+}
+
 /// Deviation of a trial piece: the middle probe, and the quarter probes unless the middle is far inside the
 /// target. A probe where the map fails counts as infinite (the piece is split).
 fn probe(
@@ -84,13 +94,32 @@ fn probe(
     middle.max(quarters)
 }
 
+/// A trial piece's deviation as a share of what it may have (≤ 1: accepted): the closed-form bound for a
+/// straight line on polar axes, the probes otherwise.
+fn load(
+    path: &Path,
+    map: &AxisMap,
+    (s0, a0): (f64, [f64; 2]),
+    (s1, a1): (f64, [f64; 2]),
+    budget: Budget,
+) -> f64 {
+    if let (Some(polar), Path::Line { .. }) = (map.polar(), path) {
+        let (p0, p1) = (path.point(s0), path.point(s1));
+        let ends = (([p0[0], p0[1]], a0), ([p1[0], p1[1]], a1));
+        if let Some(bound) = polar_line_bound(polar, ends.0, ends.1) {
+            return bound / budget.bound;
+        }
+    }
+    probe(path, map, (s0, a0), (s1, a1), budget.probe) / budget.probe
+}
+
 /// Adaptive cut of `path` from `(s_start, a_start)` to `s_end`; pushes the end point of every piece.
 pub fn cut_adaptive(
     path: &Path,
     map: &AxisMap,
     (s_start, a_start): (f64, [f64; 2]),
     s_end: f64,
-    target: f64,
+    budget: Budget,
     out: &mut Vec<Breakpoint>,
 ) -> Result<(), CutError> {
     let rotary = map.units().map(|u| u == MotorUnit::Rad);
@@ -111,18 +140,18 @@ pub fn cut_adaptive(
             Ok(a1) => turn_ratio(a0, a1, rotary),
             _ => 0.0,
         };
-        let error = match trial {
+        let load = match trial {
             Ok(_) if turn > 1.0 + 1e-9 => f64::INFINITY,
-            Ok(a1) => probe(path, map, (s0, a0), (s1, a1), target),
+            Ok(a1) => load(path, map, (s0, a0), (s1, a1), budget),
             Err(ReachError::AtCentre { .. }) => f64::INFINITY,
             Err(e) => return Err(e.into()),
         };
         let next = match trial {
-            Ok(a1) if error <= target => {
+            Ok(a1) if load <= 1.0 => {
                 out.push(Breakpoint { s: s1, axes: a1 });
                 s0 = s1;
                 a0 = a1;
-                piece * growth(target, error)
+                piece * growth(load)
             }
             _ => {
                 if piece * length < MIN_PIECE_MM {
@@ -131,7 +160,7 @@ pub fn cut_adaptive(
                 if turn > 1.0 + 1e-9 {
                     piece / turn
                 } else {
-                    piece * shrink(target, error)
+                    piece * shrink(load)
                 }
             }
         };
@@ -187,19 +216,20 @@ fn turn_ratio(a0: [f64; 2], a1: [f64; 2], rotary: [bool; 2]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Next piece length factor after an accepted piece with deviation `error` (chord error ∝ h²).
-fn growth(target: f64, error: f64) -> f64 {
-    if error <= 0.0 {
+/// Next piece length factor after an accepted piece that used `load` of its budget (chord error ∝ h²).
+fn growth(load: f64) -> f64 {
+    if load <= 0.0 {
         4.0
     } else {
-        (0.95 * (target / error).sqrt()).clamp(0.5, 4.0)
+        (0.99 / load.sqrt()).clamp(0.5, 4.0)
     }
 }
 
-/// Piece length factor after a rejected trial.
-fn shrink(target: f64, error: f64) -> f64 {
-    if error.is_finite() {
-        (0.95 * (target / error).sqrt()).clamp(0.1, 0.7)
+/// Piece length factor after a rejected trial: just short enough by the h² law, so that no piece is
+/// shorter than it needs to be.
+fn shrink(load: f64) -> f64 {
+    if load.is_finite() {
+        (0.99 / load.sqrt()).clamp(0.1, 0.95)
     } else {
         0.5
     }
@@ -257,7 +287,11 @@ mod tests {
             };
             let start = map.to_axes(path.point(0.0), [0.0; 2]).expect("reachable");
             let mut cuts = Vec::new();
-            cut_adaptive(&path, &map, (0.0, start), 1.0, target, &mut cuts).expect("cut");
+            let budget = Budget {
+                bound: target,
+                probe: target,
+            };
+            cut_adaptive(&path, &map, (0.0, start), 1.0, budget, &mut cuts).expect("cut");
             // Each piece, checked densely, stays within the target (with the probes' few percent).
             let dense: Vec<f64> = (1..64).map(|i| f64::from(i) / 64.0).collect();
             let mut from = (0.0, start);

@@ -1,0 +1,133 @@
+//! Closed-form upper bound on the chord error of a polar piece: the nozzle path when radius and angle move
+//! linearly between two points of a straight Cartesian line.
+//!
+//! With `r(u) = r0 + u·Δr`, `θ(u) = θ0 + u·Δθ` the nozzle is `q(u) = r(u)·e_r(θ(u))` and
+//! `q'' = 2·Δr·Δθ·e_θ − r·Δθ²·e_r`. Its offset from the chord's line, `g(u) = n·(q(u) − p0)` (`n` the
+//! line's unit normal), vanishes at both ends, so `|g| ≤ max|g''| / 8`. Writing `q''` in the frame of the
+//! middle angle, `n` seen from that frame turns by at most `|Δθ|/2` along the piece, which gives
+//! `max|g''| ≤ max_{u=0,1} |n_m·v(u)| + |v|max·|Δθ|/2` with `v = (−r·Δθ², 2·Δr·Δθ)` linear in `u`.
+//! While `|q''|` stays small against the chord length the nozzle moves monotonically along the line, so its
+//! distance from the segment is `|g|` itself: the bound is a guarantee, not an estimate, and costs no
+//! trigonometry.
+
+use crate::axes::PolarAxes;
+
+/// Added to every bound for floating-point error in the end points (mm).
+const ROUNDING_SLACK: f64 = 1e-10;
+
+/// Upper bound (mm) on the XY distance between the straight segment `p0 → p1` and the nozzle when the polar
+/// axes move linearly from `a0` to `a1` (the axes of `p0` and `p1`); `None` where the bound does not apply
+/// (a piece ending near the centre, a half-turn piece, or one curving too much to stay monotone).
+pub fn polar_line_bound(
+    polar: PolarAxes,
+    (p0, a0): ([f64; 2], [f64; 2]),
+    (p1, a1): ([f64; 2], [f64; 2]),
+) -> Option<f64> {
+    let (ri, ti) = (polar.radius, 1 - polar.radius);
+    let (r0, r1) = (a0[ri], a1[ri]);
+    let (dr, dt) = (r1 - r0, a1[ti] - a0[ti]);
+    let chord = [p1[0] - p0[0], p1[1] - p0[1]];
+    let length = (chord[0] * chord[0] + chord[1] * chord[1]).sqrt();
+    if !(r0 > 0.0 && r1 > 0.0 && length > 0.0) {
+        return None;
+    }
+    // Unit radial direction at the middle angle: the normalised sum of the end directions.
+    let c = polar.centre;
+    let e0 = [(p0[0] - c[0]) / r0, (p0[1] - c[1]) / r0];
+    let e1 = [(p1[0] - c[0]) / r1, (p1[1] - c[1]) / r1];
+    let sum = [e0[0] + e1[0], e0[1] + e1[1]];
+    let sum_norm = (sum[0] * sum[0] + sum[1] * sum[1]).sqrt();
+    if sum_norm < 1.0 {
+        // More than a third of a turn: far outside the regime this bound is for.
+        return None;
+    }
+    let em = [sum[0] / sum_norm, sum[1] / sum_norm];
+    let n = [-chord[1] / length, chord[0] / length];
+    // The normal in the middle frame (radial, tangential components).
+    let nm = [n[0] * em[0] + n[1] * em[1], n[1] * em[0] - n[0] * em[1]];
+    let tangential = 2.0 * dr * dt;
+    let radial = |r: f64| -r * dt * dt;
+    let at_ends = (nm[0] * radial(r0) + nm[1] * tangential)
+        .abs()
+        .max((nm[0] * radial(r1) + nm[1] * tangential).abs());
+    let radial_max = radial(r0.max(r1));
+    let v_max = (radial_max * radial_max + tangential * tangential).sqrt();
+    if 1.5 * v_max >= length {
+        return None;
+    }
+    Some((at_ends + v_max * dt.abs() / 2.0) / 8.0 + ROUNDING_SLACK)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const POLAR: PolarAxes = PolarAxes {
+        centre: [0.0, 0.0],
+        radius: 0,
+    };
+
+    fn axes(p: [f64; 2], near: f64) -> [f64; 2] {
+        let mut t = p[1].atan2(p[0]);
+        while t - near > std::f64::consts::PI {
+            t -= std::f64::consts::TAU;
+        }
+        [p[0].hypot(p[1]), t]
+    }
+
+    /// Distance from the polar-linear path to the segment, sampled densely.
+    fn sampled(p0: [f64; 2], p1: [f64; 2]) -> f64 {
+        let (a0, a1) = (axes(p0, 0.0), axes(p1, axes(p0, 0.0)[1]));
+        (0..=2000)
+            .map(|i| {
+                let u = f64::from(i) / 2000.0;
+                let (r, t) = (a0[0] + (a1[0] - a0[0]) * u, a0[1] + (a1[1] - a0[1]) * u);
+                crate::path::distance_to_segment([r * t.cos(), r * t.sin()], p0, p1)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn tangential_piece_is_the_sagitta() {
+        // A chord of length L perpendicular to the radius at r: the path bulges by ≈ L²/(8r).
+        let (p0, p1) = ([100.0, -1.0], [100.0, 1.0]);
+        let bound = polar_line_bound(POLAR, (p0, axes(p0, 0.0)), (p1, axes(p1, 0.0)));
+        let exact = sampled(p0, p1);
+        let bound = bound.unwrap_or(f64::INFINITY);
+        assert!(
+            bound >= exact && bound <= exact * 1.02,
+            "{bound} vs {exact}"
+        );
+    }
+
+    #[test]
+    fn radial_piece_has_no_error() {
+        let (p0, p1) = ([10.0, 10.0], [20.0, 20.0]);
+        let bound = polar_line_bound(POLAR, (p0, axes(p0, 0.0)), (p1, axes(p1, 0.0)));
+        assert!(bound.is_some_and(|b| b < 1e-9));
+    }
+
+    #[test]
+    fn bounds_every_direction_and_distance() {
+        // Pieces at all directions and distances from the centre: the bound holds and is rarely loose.
+        let mut worst_ratio = 0.0f64;
+        for k in 0..36 {
+            let dir = f64::from(k) * 10f64.to_radians();
+            for (r, len) in [(3.0, 0.3), (20.0, 1.0), (100.0, 5.0), (1.0, 0.05)] {
+                let p0 = [r, 0.5];
+                let p1 = [p0[0] + len * dir.cos(), p0[1] + len * dir.sin()];
+                let a0 = axes(p0, 0.0);
+                let a1 = axes(p1, a0[1]);
+                let Some(bound) = polar_line_bound(POLAR, (p0, a0), (p1, a1)) else {
+                    continue;
+                };
+                let exact = sampled(p0, p1);
+                assert!(bound >= exact, "dir {k} r {r}: {bound} < {exact}");
+                if exact > 1e-6 {
+                    worst_ratio = worst_ratio.max(bound / exact);
+                }
+            }
+        }
+        assert!(worst_ratio < 1.5, "{worst_ratio}");
+    }
+}

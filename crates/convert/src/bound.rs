@@ -3,9 +3,11 @@
 //!
 //! With `r(u) = r0 + u·Δr`, `θ(u) = θ0 + u·Δθ` the nozzle is `q(u) = r(u)·e_r(θ(u))` and
 //! `q'' = 2·Δr·Δθ·e_θ − r·Δθ²·e_r`. Its offset from the chord's line, `g(u) = n·(q(u) − p0)` (`n` the
-//! line's unit normal), vanishes at both ends, so `|g| ≤ max|g''| / 8`. Writing `q''` in the frame of the
-//! middle angle, `n` seen from that frame turns by at most `|Δθ|/2` along the piece, which gives
-//! `max|g''| ≤ max_{u=0,1} |n_m·v(u)| + |v|max·|Δθ|/2` with `v = (−r·Δθ², 2·Δr·Δθ)` linear in `u`.
+//! line's unit normal), vanishes at both ends, so `|g| ≤ max|g''| / 8`. In the radial/tangential frame of
+//! the point, `q'' = v = (−r·Δθ², 2·Δr·Δθ)`, linear in `u`; that frame turns by at most `φ = |Δθ|/2` from
+//! the middle one, so with `n_m` the normal seen from the middle frame
+//! `max|g''| ≤ max_{u=0,1} |n_m·v| + sin φ · max_{u=0,1} |n_m⊥·v|` (the second term vanishes for a chord
+//! across the radius, where the bound is the exact sagitta to first order).
 //! While `|q''|` stays small against the chord length the nozzle moves monotonically along the line, so its
 //! distance from the segment is `|g|` itself: the bound is a guarantee, not an estimate, and costs no
 //! trigonometry.
@@ -46,16 +48,20 @@ pub fn polar_line_bound(
     // The normal in the middle frame (radial, tangential components).
     let nm = [n[0] * em[0] + n[1] * em[1], n[1] * em[0] - n[0] * em[1]];
     let tangential = 2.0 * dr * dt;
-    let radial = |r: f64| -r * dt * dt;
-    let at_ends = (nm[0] * radial(r0) + nm[1] * tangential)
-        .abs()
-        .max((nm[0] * radial(r1) + nm[1] * tangential).abs());
-    let radial_max = radial(r0.max(r1));
-    let v_max = (radial_max * radial_max + tangential * tangential).sqrt();
+    let v = |r: f64| [-r * dt * dt, tangential];
+    // n·q'' = cos φ·(n_m·v) ± sin φ·(n_m⊥·v) with |φ| ≤ |Δθ|/2 the turn from the middle frame; both dot
+    // products are linear in u, so their largest magnitudes are at the ends.
+    let along = |v: [f64; 2]| (nm[0] * v[0] + nm[1] * v[1]).abs();
+    let across = |v: [f64; 2]| (nm[0] * v[1] - nm[1] * v[0]).abs();
+    let (v0, v1) = (v(r0), v(r1));
+    let g2 = along(v0).max(along(v1)) + across(v0).max(across(v1)) * dt.abs() / 2.0;
+    // |q''| ≤ |v|: small against the chord, the nozzle moves monotonically along it.
+    let norm = |v: [f64; 2]| (v[0] * v[0] + v[1] * v[1]).sqrt();
+    let v_max = norm(v0).max(norm(v1));
     if 1.5 * v_max >= length {
         return None;
     }
-    Some((at_ends + v_max * dt.abs() / 2.0) / 8.0 + ROUNDING_SLACK)
+    Some(g2 / 8.0 + ROUNDING_SLACK)
 }
 
 #[cfg(test)]

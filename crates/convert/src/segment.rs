@@ -22,6 +22,9 @@ const PROBES: [f64; 3] = [0.5, 0.25, 0.75];
 /// A piece whose middle deviates less than this share of the target needs no quarter probes: in the
 /// parabola regime the quarters deviate ¾ as much as the middle.
 const MIDDLE_ONLY: f64 = 0.25;
+/// A piece that passes with less than this share of its budget is kept in hand while a longer one is
+/// tried (by the h² rule, a piece at this load is within 5% of the longest allowed).
+const STRETCH: f64 = 0.9;
 /// A piece shorter than this (mm) that still misses the target means the map is not smooth here.
 const MIN_PIECE_MM: f64 = 1e-9;
 
@@ -95,7 +98,9 @@ fn probe(
 }
 
 /// A trial piece's deviation as a share of what it may have (≤ 1: accepted): the closed-form bound for a
-/// straight line on polar axes, the probes otherwise.
+/// straight line on polar axes, the probes otherwise. The probes also need the piece to turn a rotary axis
+/// by at most [`MAX_ANGLE_STEP`]; a piece turning `k` times that counts as loaded `k²`, so the h² rule cuts
+/// it to the allowed turn.
 fn load(
     path: &Path,
     map: &AxisMap,
@@ -110,10 +115,18 @@ fn load(
             return bound / budget.bound;
         }
     }
+    let turn = turn_ratio(a0, a1, map.units().map(|u| u == MotorUnit::Rad));
+    if turn > 1.0 + 1e-9 {
+        return turn * turn;
+    }
     probe(path, map, (s0, a0), (s1, a1), budget.probe) / budget.probe
 }
 
 /// Adaptive cut of `path` from `(s_start, a_start)` to `s_end`; pushes the end point of every piece.
+///
+/// Greedy: each piece as long as its budget allows (the h² rule proposes the length, the trial decides),
+/// which gives the fewest pieces; a piece that passes with much to spare is kept in hand while a longer one
+/// is tried. The whole move is tried first, and the last two pieces share the rest equally.
 pub fn cut_adaptive(
     path: &Path,
     map: &AxisMap,
@@ -122,65 +135,61 @@ pub fn cut_adaptive(
     budget: Budget,
     out: &mut Vec<Breakpoint>,
 ) -> Result<(), CutError> {
-    let rotary = map.units().map(|u| u == MotorUnit::Rad);
     let length = path.length().max(path.xy_length());
-    let (mut s0, mut a0) = (s_start, a_start);
     let longest = path.longest_piece();
-    let mut h = balanced(s_end - s_start, longest);
+    let (mut s0, mut a0) = (s_start, a_start);
+    let mut h = longest;
+    // A piece that passed, kept while a longer one is tried.
+    let mut in_hand: Option<Breakpoint> = None;
     while s0 < s_end {
-        let mut s1 = (s0 + h.min(longest)).min(s_end);
+        let mut s1 = s0 + last_two(s_end - s0, h.min(longest));
         // Do not leave a sliver at the end.
-        if (s_end - s1) * length < 1e-6 {
+        if s1 >= s_end || (s_end - s1) * length < 1e-6 {
             s1 = s_end;
         }
-        let trial = map.to_axes(path.point(s1), a0);
         let piece = s1 - s0;
-        // A piece that turns a rotary axis too far is shortened to the allowed turn directly.
-        let turn = match trial {
-            Ok(a1) => turn_ratio(a0, a1, rotary),
-            _ => 0.0,
-        };
+        let trial = map.to_axes(path.point(s1), a0);
         let load = match trial {
-            Ok(_) if turn > 1.0 + 1e-9 => f64::INFINITY,
             Ok(a1) => load(path, map, (s0, a0), (s1, a1), budget),
             Err(ReachError::AtCentre { .. }) => f64::INFINITY,
             Err(e) => return Err(e.into()),
         };
-        let next = match trial {
+        match trial {
             Ok(a1) if load <= 1.0 => {
-                out.push(Breakpoint { s: s1, axes: a1 });
-                s0 = s1;
-                a0 = a1;
-                piece * growth(load)
+                h = piece * growth(load);
+                let passed = Breakpoint { s: s1, axes: a1 };
+                if in_hand.is_none() && s1 < s_end && load < STRETCH {
+                    in_hand = Some(passed);
+                    continue;
+                }
+                out.push(passed);
+                (s0, a0, in_hand) = (s1, a1, None);
             }
             _ => {
-                if piece * length < MIN_PIECE_MM {
+                h = piece * shrink(load);
+                if let Some(kept) = in_hand.filter(|k| s0 + h <= k.s) {
+                    // The longer trial failed short of where the kept piece ends: take that one.
+                    h = kept.s - s0;
+                    out.push(kept);
+                    (s0, a0, in_hand) = (kept.s, kept.axes, None);
+                } else if piece * length < MIN_PIECE_MM {
                     return Err(CutError::NoConvergence { s: s0 });
                 }
-                if turn > 1.0 + 1e-9 {
-                    piece / turn
-                } else {
-                    piece * shrink(load)
-                }
             }
-        };
-        h = balanced(s_end - s0, next.min(longest));
+        }
     }
     Ok(())
 }
 
-/// The piece length that divides `remaining` into equal pieces no longer than `preferred`, so a move does
-/// not end with a needlessly short piece.
-fn balanced(remaining: f64, preferred: f64) -> f64 {
-    if remaining <= 0.0 || preferred <= 0.0 {
-        return preferred;
-    }
-    // Not one piece more for a rounding error in the ratio.
-    let pieces = (remaining / preferred - 1e-9).ceil().max(1.0);
-    if pieces > 1e6 {
-        preferred
+/// The next piece's length when `remaining` is left and `preferred` is allowed: the rest in one piece if
+/// it fits, in two equal ones if two fit (no short last piece), else `preferred`.
+fn last_two(remaining: f64, preferred: f64) -> f64 {
+    if remaining <= preferred {
+        remaining
+    } else if remaining <= 2.0 * preferred {
+        remaining / 2.0
     } else {
-        remaining / pieces
+        preferred
     }
 }
 
@@ -221,7 +230,7 @@ fn growth(load: f64) -> f64 {
     if load <= 0.0 {
         4.0
     } else {
-        (0.99 / load.sqrt()).clamp(0.5, 4.0)
+        (1.0 / load.sqrt()).clamp(0.5, 4.0)
     }
 }
 
@@ -229,7 +238,7 @@ fn growth(load: f64) -> f64 {
 /// shorter than it needs to be.
 fn shrink(load: f64) -> f64 {
     if load.is_finite() {
-        (0.99 / load.sqrt()).clamp(0.1, 0.95)
+        (1.0 / load.sqrt()).clamp(0.1, 0.999)
     } else {
         0.5
     }
@@ -268,10 +277,10 @@ mod tests {
     }
 
     #[test]
-    fn balanced_pieces_are_equal_and_no_longer_than_asked() {
-        assert_eq!(balanced(1.0, 0.3), 0.25);
-        assert_eq!(balanced(1.0, 1.0), 1.0);
-        assert_eq!(balanced(0.9, 0.3), 0.3);
+    fn last_two_pieces_share_the_rest() {
+        assert_eq!(last_two(1.0, 0.3), 0.3);
+        assert_eq!(last_two(0.5, 0.3), 0.25);
+        assert_eq!(last_two(0.2, 0.3), 0.2);
     }
 
     #[test]

@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use kinematics::{Kinematics, MotorMap, MotorUnit, ReachError, SegmentError};
+use kinematics::{Kinematics, MotorMap, MotorUnit, ReachError, SegmentError, unwrap_near};
 
 use crate::error::ConvertError;
 use crate::options::Target;
@@ -96,6 +96,9 @@ impl AxisMap {
     /// Output axes for toolhead position `p`, angles chosen nearest `near` (unwrapped).
     pub fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
         match self {
+            AxisMap::Motors {
+                polar: Some(polar), ..
+            } => polar.to_axes(p, near),
             AxisMap::Motors {
                 kin, planar, count, ..
             } => {
@@ -199,6 +202,27 @@ pub struct PolarAxes {
     pub radius: usize,
 }
 
+impl PolarAxes {
+    /// The closed forms the machine declares for these motors (the hot path of cutting, without the trait
+    /// call): the angle unwrapped nearest `near`; at the centre itself, radius 0 and the angle kept.
+    fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(ReachError::NotFinite);
+        }
+        let (x, y) = (p[0] - self.centre[0], p[1] - self.centre[1]);
+        let near_angle = near[1 - self.radius];
+        let (radius, angle) = if x == 0.0 && y == 0.0 {
+            (0.0, near_angle)
+        } else {
+            ((x * x + y * y).sqrt(), unwrap_near(y.atan2(x), near_angle))
+        };
+        let mut axes = [0.0; 2];
+        axes[self.radius] = radius;
+        axes[1 - self.radius] = angle;
+        Ok(axes)
+    }
+}
+
 fn polar_axes(kin: &dyn Kinematics, planar: [usize; 2]) -> Option<PolarAxes> {
     match (kin.motor_map(planar[0]), kin.motor_map(planar[1])) {
         (MotorMap::Radius { centre: c }, MotorMap::Angle { centre }) if c == centre => {
@@ -251,5 +275,45 @@ fn cylindrical_motors(kin: &dyn Kinematics) -> Result<[usize; 2], ConvertError> 
             "cylindrical output needs a polar machine (arm and bed motors); `{}` has none",
             kin.name()
         ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::options::Target;
+    use kinematics::PolarParams;
+    use kinematics::polar::Polar;
+
+    #[test]
+    fn polar_closed_form_matches_the_machine() {
+        let kin: Arc<dyn Kinematics> =
+            Arc::new(Polar::new(PolarParams::klipper_example()).expect("valid"));
+        let map = AxisMap::motors(Arc::clone(&kin), Target::Cylindrical).expect("map");
+        let polar = map.polar().expect("ideal polar axes");
+        let AxisMap::Motors { planar, count, .. } = map else {
+            return;
+        };
+        for (i, p) in [
+            [10.0, 0.0],
+            [-3.0, 4.0],
+            [-5.0, -1e-9],
+            [0.0, 0.0],
+            [1e-12, -7.0],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let near = [0.0, 3.0 * i as f64];
+            let mut prev = [0.0; MAX_MOTORS];
+            prev[planar[0]] = near[0];
+            prev[planar[1]] = near[1];
+            let mut motors = [0.0; MAX_MOTORS];
+            kin.inverse_near([p[0], p[1], 1.0], &prev[..count], &mut motors[..count])
+                .expect("reachable");
+            let fast = polar.to_axes([p[0], p[1], 1.0], near).expect("reachable");
+            assert_eq!(fast, [motors[planar[0]], motors[planar[1]]], "{p:?}");
+        }
+        assert!(polar.to_axes([f64::NAN, 0.0, 0.0], [0.0; 2]).is_err());
     }
 }

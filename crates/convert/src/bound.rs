@@ -29,24 +29,24 @@ pub fn polar_line_bound(
     let (r0, r1) = (a0[ri], a1[ri]);
     let (dr, dt) = (r1 - r0, a1[ti] - a0[ti]);
     let chord = [p1[0] - p0[0], p1[1] - p0[1]];
-    let length = (chord[0] * chord[0] + chord[1] * chord[1]).sqrt();
-    if !(r0 > 0.0 && r1 > 0.0 && length > 0.0) {
+    let length2 = chord[0] * chord[0] + chord[1] * chord[1];
+    if !(r0 > 0.0 && r1 > 0.0 && length2 > 0.0) {
         return None;
     }
-    // Unit radial direction at the middle angle: the normalised sum of the end directions.
+    // Radial direction at the middle angle, unnormalised: (p0 − c)/r0 + (p1 − c)/r1, times r0·r1.
     let c = polar.centre;
-    let e0 = [(p0[0] - c[0]) / r0, (p0[1] - c[1]) / r0];
-    let e1 = [(p1[0] - c[0]) / r1, (p1[1] - c[1]) / r1];
-    let sum = [e0[0] + e1[0], e0[1] + e1[1]];
-    let sum_norm = (sum[0] * sum[0] + sum[1] * sum[1]).sqrt();
-    if sum_norm < 1.0 {
+    let w = [
+        (p0[0] - c[0]) * r1 + (p1[0] - c[0]) * r0,
+        (p0[1] - c[1]) * r1 + (p1[1] - c[1]) * r0,
+    ];
+    let w2 = w[0] * w[0] + w[1] * w[1];
+    if w2 < (r0 * r1) * (r0 * r1) {
         // More than a third of a turn: far outside the regime this bound is for.
         return None;
     }
-    let em = [sum[0] / sum_norm, sum[1] / sum_norm];
-    let n = [-chord[1] / length, chord[0] / length];
-    // The normal in the middle frame (radial, tangential components).
-    let nm = [n[0] * em[0] + n[1] * em[1], n[1] * em[0] - n[0] * em[1]];
+    // The chord's normal in the middle frame (radial, tangential components), scaled by |chord|·|w|.
+    let n = [-chord[1], chord[0]];
+    let nm = [n[0] * w[0] + n[1] * w[1], n[1] * w[0] - n[0] * w[1]];
     let tangential = 2.0 * dr * dt;
     let v = |r: f64| [-r * dt * dt, tangential];
     // n·q'' = cos φ·(n_m·v) ± sin φ·(n_m⊥·v) with |φ| ≤ |Δθ|/2 the turn from the middle frame; both dot
@@ -54,14 +54,13 @@ pub fn polar_line_bound(
     let along = |v: [f64; 2]| (nm[0] * v[0] + nm[1] * v[1]).abs();
     let across = |v: [f64; 2]| (nm[0] * v[1] - nm[1] * v[0]).abs();
     let (v0, v1) = (v(r0), v(r1));
-    let g2 = along(v0).max(along(v1)) + across(v0).max(across(v1)) * dt.abs() / 2.0;
     // |q''| ≤ |v|: small against the chord, the nozzle moves monotonically along it.
-    let norm = |v: [f64; 2]| (v[0] * v[0] + v[1] * v[1]).sqrt();
-    let v_max = norm(v0).max(norm(v1));
-    if 1.5 * v_max >= length {
+    let norm2 = |v: [f64; 2]| v[0] * v[0] + v[1] * v[1];
+    if 2.25 * norm2(v0).max(norm2(v1)) >= length2 {
         return None;
     }
-    Some(g2 / 8.0 + ROUNDING_SLACK)
+    let g2 = along(v0).max(along(v1)) + across(v0).max(across(v1)) * dt.abs() / 2.0;
+    Some(g2 / (8.0 * (length2 * w2).sqrt()) + ROUNDING_SLACK)
 }
 
 #[cfg(test)]

@@ -328,7 +328,8 @@ impl<W: Write> Converter<W> {
         let d = [to[0] - from[0], to[1] - from[1]];
         let len2 = d[0] * d[0] + d[1] * d[1];
         let t = (((c[0] - from[0]) * d[0] + (c[1] - from[1]) * d[1]) / len2).clamp(0.0, 1.0);
-        let miss = (from[0] + d[0] * t - c[0]).hypot(from[1] + d[1] * t - c[1]);
+        let (mx, my) = (from[0] + d[0] * t - c[0], from[1] + d[1] * t - c[1]);
+        let miss = (mx * mx + my * my).sqrt();
         Ok((miss <= CENTRE_SNAP).then_some(t))
     }
 

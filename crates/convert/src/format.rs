@@ -86,43 +86,53 @@ impl LineBuf {
 
     /// Appends ` <letter><units·10^-decimals>`.
     pub fn word(&mut self, letter: char, units: i64, decimals: u8) {
-        let mut head = [b' ', 0, 0, 0, 0];
-        let len = letter.encode_utf8(&mut head[1..]).len();
-        self.push(&head[..=len]);
+        match u8::try_from(letter) {
+            // The usual ASCII letter: two stores instead of a copy.
+            Ok(ascii) if ascii.is_ascii() && self.len + 2 <= self.bytes.len() => {
+                self.bytes[self.len] = b' ';
+                self.bytes[self.len + 1] = ascii;
+                self.len += 2;
+            }
+            _ => {
+                let mut head = [b' ', 0, 0, 0, 0];
+                let len = letter.encode_utf8(&mut head[1..]).len();
+                self.push(&head[..=len]);
+            }
+        }
         self.number(units, decimals);
     }
 
     /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`), with integer
-    /// arithmetic only, two digits at a time from the right.
+    /// arithmetic by constants only (no division by a variable power of ten), two digits at a time.
     pub fn number(&mut self, units: i64, decimals: u8) {
         if self.len + NUMBER_MAX > self.bytes.len() {
             return;
         }
-        let decimals = usize::from(decimals.min(18));
-        let magnitude = units.unsigned_abs();
-        let (whole, mut frac) = (magnitude / POW10[decimals], magnitude % POW10[decimals]);
-        let mut frac_digits = 0;
-        if frac != 0 {
-            frac_digits = decimals;
-            while frac % 10 == 0 {
-                frac /= 10;
-                frac_digits -= 1;
-            }
+        let mut frac_digits = usize::from(decimals.min(18));
+        let mut digits = units.unsigned_abs();
+        // Trailing zeros of the fraction are not written.
+        while frac_digits > 0 && digits % 10 == 0 {
+            digits /= 10;
+            frac_digits -= 1;
         }
-        let whole_digits = POW10[1..].iter().take_while(|&&p| whole >= p).count() + 1;
+        let all_digits = digits.checked_ilog10().map_or(1, |l| l as usize + 1);
+        let whole_digits = all_digits.saturating_sub(frac_digits).max(1);
         let sign = usize::from(units < 0);
         let point = usize::from(frac_digits > 0);
         let end = self.len + sign + whole_digits + point + frac_digits;
         let out = &mut self.bytes[self.len..end];
+        // Right to left: fraction, point, integer part, sign.
+        let mut i = out.len();
+        digits = write_digits(&mut out[i - frac_digits..i], digits);
+        i -= frac_digits;
+        if point == 1 {
+            i -= 1;
+            out[i] = b'.';
+        }
+        write_digits(&mut out[i - whole_digits..i], digits);
         if sign == 1 {
             out[0] = b'-';
         }
-        let digits_end = out.len();
-        write_digits(&mut out[digits_end - frac_digits..], frac);
-        if point == 1 {
-            out[sign + whole_digits] = b'.';
-        }
-        write_digits(&mut out[sign..sign + whole_digits], whole);
         self.len = end;
     }
 
@@ -131,8 +141,8 @@ impl LineBuf {
     }
 }
 
-/// Fills `out` with the last `out.len()` decimal digits of `value`, zero-padded.
-fn write_digits(out: &mut [u8], mut value: u64) {
+/// Fills `out` with the last `out.len()` decimal digits of `value` (zero-padded); returns the digits left.
+fn write_digits(out: &mut [u8], mut value: u64) -> u64 {
     let mut i = out.len();
     while i >= 2 {
         let [a, b] = PAIRS[(value % 100) as usize];
@@ -143,7 +153,9 @@ fn write_digits(out: &mut [u8], mut value: u64) {
     }
     if i == 1 {
         out[0] = b'0' + (value % 10) as u8;
+        value /= 10;
     }
+    value
 }
 
 /// Decimals for a feed value so that its relative rounding error stays below 1e-7.

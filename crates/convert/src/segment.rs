@@ -1,13 +1,16 @@
 //! Cutting one path into pieces that are straight in output-axis (motor) space.
 //!
 //! Adaptive rule: a piece `[s0, s1]` is accepted when the toolhead, moved linearly in motor space between
-//! the piece's end points, stays within the target of the intended sub-path. The deviation is measured by
-//! forward kinematics at three interior points (the error of a short motor-space chord is close to a
-//! parabola `u(1−u)·k`, so these find its peak within a few percent; the target keeps a margin below the
-//! tolerance for that), and a piece may not turn a rotary axis by more than [`MAX_ANGLE_STEP`], so the
-//! parabola model holds. Step sizes follow the chord-error law `e ∝ h²`: after each trial the next length
-//! is `h·√(target/e)`, so long pieces where the map is nearly linear and short ones near the polar centre
-//! or a singular SCARA pose, without a fixed number of segments per second.
+//! the piece's end points, stays within the target of the intended sub-path. For a straight line on polar
+//! axes the deviation has a closed-form upper bound ([`crate::bound`]), a guarantee that needs no forward
+//! kinematics, so those pieces may use the whole tolerance. Elsewhere (SCARA, arcs, corrected Cartesian)
+//! the deviation is measured by forward kinematics at three interior points (the error of a short
+//! motor-space chord is close to a parabola `u(1−u)·k`, so these find its peak within a few percent; the
+//! target keeps a margin below the tolerance for that), and a piece may not turn a rotary axis by more
+//! than [`MAX_ANGLE_STEP`], so the parabola model holds. Lengths follow the chord-error law `e ∝ h²`:
+//! after each trial the next length is `h·√(target/e)`, and each piece is as long as the target allows,
+//! so a move needs as few pieces as its curvature in motor space demands: long where the map is nearly
+//! linear, short near the polar centre or a singular SCARA pose, without a fixed number per second.
 
 use kinematics::{MotorUnit, ReachError};
 

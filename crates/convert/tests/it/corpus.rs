@@ -2,10 +2,8 @@
 //! the FEKT SCARA (part centred at (0, 130), scaled down to fit a 60 mm radius there), and the comparison
 //! with Marlin's and RepRapFirmware's fixed segmentation.
 
-use convert::{AxisMap, ConvertOptions, Segmentation, Target, VerifyReport};
+use convert::{AxisMap, ConvertOptions, SegmentDeviation, Segmentation, Target, VerifyReport};
 use gcode::Command;
-
-use convert::SegmentDeviation;
 
 use crate::common::{convert_text, corpus_files, placement, round_trip};
 use crate::machines;
@@ -229,11 +227,20 @@ fn compare(s: &Setup, text: &[u8], fixed: Segmentation) -> Comparison {
     }
 }
 
+/// How far above the estimated minimum our count may be: the estimate lets neighbouring pieces share
+/// fractions, and the probe-checked machines (SCARA) keep a 10% margin of the tolerance.
+const ABOVE_MINIMUM: f64 = 1.15;
+
+/// Every file against both fixed rules: ours at a tenth of their maximum deviation must need no more
+/// segments than they do, except where the estimated minimum for any segmentation already exceeds their
+/// count (their deviation is spread evenly over short segments: 10× less error needs ≈ √10× more
+/// segments there); everywhere ours stays near that minimum.
 fn fixed_comparison(machine: &str, setup: fn(&[Command]) -> Setup, marlin: Segmentation) {
     println!(
         "| machine | file | rule | their max mm | their segs | our tolerance | our max mm | our segs | needed | ≤ segs |"
     );
     let mut failures = Vec::new();
+    let (mut rows, mut holding) = (0, 0);
     for (name, text) in corpus_files() {
         let commands = convert::read_commands(&text[..], &name).expect("corpus parses");
         let s = setup(&commands);
@@ -249,18 +256,22 @@ fn fixed_comparison(machine: &str, setup: fn(&[Command]) -> Setup, marlin: Segme
                 c.needed,
                 c.holds()
             );
-            // Where even the estimated minimum exceeds their count the claim cannot hold; everywhere ours must
-            // stay close to that minimum.
-            let inherent = c.needed > c.theirs.segments;
-            if !(c.holds() || inherent) {
-                failures.push(format!("{name} {label}: not inherent"));
+            rows += 1;
+            holding += usize::from(c.holds());
+            if !(c.holds() || c.needed > c.theirs.segments) {
+                failures.push(format!(
+                    "{name} {label}: more segments, though fewer would do"
+                ));
+            }
+            if c.ours.segments as f64 > c.needed as f64 * ABOVE_MINIMUM {
+                failures.push(format!("{name} {label}: far above the minimum"));
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{machine}: more segments than the fixed rule in {failures:?}"
+    println!(
+        "{machine}: no more segments than the fixed rule in {holding}/{rows} rows; in the others the minimum exceeds their count"
     );
+    assert!(failures.is_empty(), "{machine}: {failures:?}");
 }
 
 #[test]

@@ -205,7 +205,7 @@ pub struct PolarAxes {
 impl PolarAxes {
     /// The closed forms the machine declares for these motors (the hot path of cutting, without the trait
     /// call): the angle unwrapped nearest `near`; at the centre itself, radius 0 and the angle kept.
-    fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
+    fn to_axes(self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
         if !p.iter().all(|v| v.is_finite()) {
             return Err(ReachError::NotFinite);
         }

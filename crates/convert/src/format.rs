@@ -111,7 +111,7 @@ impl LineBuf {
         let mut frac_digits = usize::from(decimals.min(18));
         let mut digits = units.unsigned_abs();
         // Trailing zeros of the fraction are not written.
-        while frac_digits > 0 && digits % 10 == 0 {
+        while frac_digits > 0 && digits.is_multiple_of(10) {
             digits /= 10;
             frac_digits -= 1;
         }

@@ -151,6 +151,10 @@ pub fn cut_adaptive(
             s1 = s_end;
         }
         let piece = s1 - s0;
+        if piece <= 0.0 {
+            // Below the resolution of the path parameter: no piece short enough exists here.
+            return Err(CutError::NoConvergence { s: s0 });
+        }
         let trial = map.to_axes(path.point(s1), a0);
         let load = match trial {
             Ok(a1) => load(path, map, (s0, a0), (s1, a1), budget),

@@ -37,21 +37,6 @@ pub fn to_units(value: f64, decimals: u8) -> i64 {
     (scaled + 0.5f64.copysign(scaled)) as i64
 }
 
-/// Appends ` <letter><units·10^-decimals>` to `out`.
-pub fn push_word(out: &mut Vec<u8>, letter: char, units: i64, decimals: u8) {
-    let mut buf = [b' ', 0, 0, 0, 0];
-    let len = letter.encode_utf8(&mut buf[1..]).len();
-    out.extend_from_slice(&buf[..=len]);
-    push_units(out, units, decimals);
-}
-
-/// Appends the decimal text of `units · 10^-decimals`.
-pub fn push_units(out: &mut Vec<u8>, units: i64, decimals: u8) {
-    let mut line = LineBuf::default();
-    line.number(units, decimals);
-    out.extend_from_slice(line.as_bytes());
-}
-
 /// One output line assembled in place (numbers written straight into it), then written with one call.
 #[derive(Debug, Clone)]
 pub struct LineBuf {
@@ -178,10 +163,14 @@ pub fn feed_decimals(feed: f64) -> u8 {
 mod tests {
     use super::*;
 
+    fn number(units: i64, decimals: u8) -> String {
+        let mut line = LineBuf::default();
+        line.number(units, decimals);
+        String::from_utf8(line.as_bytes().to_vec()).unwrap_or_default()
+    }
+
     fn text(value: f64, decimals: u8) -> String {
-        let mut out = Vec::new();
-        push_units(&mut out, to_units(value, decimals), decimals);
-        String::from_utf8(out).unwrap_or_default()
+        number(to_units(value, decimals), decimals)
     }
 
     #[test]
@@ -219,9 +208,7 @@ mod tests {
             i64::MIN + 1,
         ] {
             for decimals in [0u8, 1, 3, 6, 9, 12] {
-                let mut out = Vec::new();
-                push_units(&mut out, units, decimals);
-                let text = String::from_utf8(out).unwrap_or_default();
+                let text = number(units, decimals);
                 let expected = if decimals == 0 {
                     units.to_string()
                 } else {
@@ -240,6 +227,15 @@ mod tests {
                 assert_eq!(text, expected, "{units} at {decimals}");
             }
         }
+    }
+
+    #[test]
+    fn words_have_a_space_and_any_letter() {
+        let mut line = LineBuf::default();
+        line.push(b"G1");
+        line.word('X', 12345, 3);
+        line.word('θ', -5, 1);
+        assert_eq!(line.as_bytes(), "G1 X12.345 θ-0.5".as_bytes());
     }
 
     #[test]

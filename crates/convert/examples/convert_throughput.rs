@@ -41,6 +41,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         written = out.len();
         if repeats == 1 {
             println!("{stats:?}");
+            if let Some(path) = std::env::var_os("CONVERT_OUT") {
+                std::fs::write(path, &out)?;
+            }
         }
     }
     println!(

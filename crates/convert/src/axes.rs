@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use kinematics::{Kinematics, MotorMap, MotorUnit, ReachError, SegmentError};
+use kinematics::{Kinematics, MotorMap, MotorUnit, ReachError, SegmentError, unwrap_near};
 
 use crate::error::ConvertError;
 use crate::options::Target;
@@ -22,6 +22,8 @@ pub enum AxisMap {
         planar: [usize; 2],
         z: Option<usize>,
         count: usize,
+        /// Set when the two output axes are an ideal polar radius and angle (closed-form chord bound).
+        polar: Option<PolarAxes>,
     },
     /// Output = Cartesian XY for a firmware that believes in `ideal` while the machine is `real`:
     /// `xy' = ideal.forward(real.inverse(p))`.
@@ -51,11 +53,13 @@ impl AxisMap {
                 }
             }
         };
+        let polar = polar_axes(kin.as_ref(), planar);
         Ok(AxisMap::Motors {
             kin,
             planar,
             z,
             count,
+            polar,
         })
     }
 
@@ -92,6 +96,9 @@ impl AxisMap {
     /// Output axes for toolhead position `p`, angles chosen nearest `near` (unwrapped).
     pub fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
         match self {
+            AxisMap::Motors {
+                polar: Some(polar), ..
+            } => polar.to_axes(p, near),
             AxisMap::Motors {
                 kin, planar, count, ..
             } => {
@@ -131,6 +138,7 @@ impl AxisMap {
                 planar,
                 z: z_index,
                 count,
+                ..
             } => {
                 let mut m = [0.0; MAX_MOTORS];
                 m[planar[0]] = a[0];
@@ -160,6 +168,14 @@ impl AxisMap {
         }
     }
 
+    /// The output axes as an ideal polar radius and angle, if they are.
+    pub fn polar(&self) -> Option<PolarAxes> {
+        match self {
+            AxisMap::Motors { polar, .. } => *polar,
+            AxisMap::Corrected { .. } => None,
+        }
+    }
+
     /// The polar rotation centre, where a motor declares itself an angle about a point.
     pub fn centre(&self) -> Option<[f64; 2]> {
         let kin = self.machine();
@@ -175,6 +191,47 @@ impl AxisMap {
             AxisMap::Motors { kin, .. } => kin.as_ref(),
             AxisMap::Corrected { real, .. } => real.as_ref(),
         }
+    }
+}
+
+/// Output axes that are exactly `radius = |p − centre|` and `angle = atan2(p − centre)` (unwrapped).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PolarAxes {
+    pub centre: [f64; 2],
+    /// Which output axis (0 or 1) is the radius; the other is the angle.
+    pub radius: usize,
+}
+
+impl PolarAxes {
+    /// The closed forms the machine declares for these motors (the hot path of cutting, without the trait
+    /// call): the angle unwrapped nearest `near`; at the centre itself, radius 0 and the angle kept.
+    fn to_axes(self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(ReachError::NotFinite);
+        }
+        let (x, y) = (p[0] - self.centre[0], p[1] - self.centre[1]);
+        let near_angle = near[1 - self.radius];
+        let (radius, angle) = if x == 0.0 && y == 0.0 {
+            (0.0, near_angle)
+        } else {
+            ((x * x + y * y).sqrt(), unwrap_near(y.atan2(x), near_angle))
+        };
+        let mut axes = [0.0; 2];
+        axes[self.radius] = radius;
+        axes[1 - self.radius] = angle;
+        Ok(axes)
+    }
+}
+
+fn polar_axes(kin: &dyn Kinematics, planar: [usize; 2]) -> Option<PolarAxes> {
+    match (kin.motor_map(planar[0]), kin.motor_map(planar[1])) {
+        (MotorMap::Radius { centre: c }, MotorMap::Angle { centre }) if c == centre => {
+            Some(PolarAxes { centre, radius: 0 })
+        }
+        (MotorMap::Angle { centre: c }, MotorMap::Radius { centre }) if c == centre => {
+            Some(PolarAxes { centre, radius: 1 })
+        }
+        _ => None,
     }
 }
 
@@ -218,5 +275,45 @@ fn cylindrical_motors(kin: &dyn Kinematics) -> Result<[usize; 2], ConvertError> 
             "cylindrical output needs a polar machine (arm and bed motors); `{}` has none",
             kin.name()
         ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::options::Target;
+    use kinematics::PolarParams;
+    use kinematics::polar::Polar;
+
+    #[test]
+    fn polar_closed_form_matches_the_machine() {
+        let kin: Arc<dyn Kinematics> =
+            Arc::new(Polar::new(PolarParams::klipper_example()).expect("valid"));
+        let map = AxisMap::motors(Arc::clone(&kin), Target::Cylindrical).expect("map");
+        let polar = map.polar().expect("ideal polar axes");
+        let AxisMap::Motors { planar, count, .. } = map else {
+            return;
+        };
+        for (i, p) in [
+            [10.0, 0.0],
+            [-3.0, 4.0],
+            [-5.0, -1e-9],
+            [0.0, 0.0],
+            [1e-12, -7.0],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let near = [0.0, 3.0 * i as f64];
+            let mut prev = [0.0; MAX_MOTORS];
+            prev[planar[0]] = near[0];
+            prev[planar[1]] = near[1];
+            let mut motors = [0.0; MAX_MOTORS];
+            kin.inverse_near([p[0], p[1], 1.0], &prev[..count], &mut motors[..count])
+                .expect("reachable");
+            let fast = polar.to_axes([p[0], p[1], 1.0], near).expect("reachable");
+            assert_eq!(fast, [motors[planar[0]], motors[planar[1]]], "{p:?}");
+        }
+        assert!(polar.to_axes([f64::NAN, 0.0, 0.0], [0.0; 2]).is_err());
     }
 }

@@ -23,10 +23,10 @@ use kinematics::{MotorUnit, ReachError, SegmentError};
 
 use crate::axes::AxisMap;
 use crate::error::ConvertError;
-use crate::format::{feed_decimals, push_units, push_word, scale, to_units};
+use crate::format::{LineBuf, feed_decimals, scale, to_units};
 use crate::options::{ConvertOptions, Extrusion, FeedMode, Segmentation};
 use crate::path::Path;
-use crate::segment::{Breakpoint, CutError, cut_adaptive, cut_fixed};
+use crate::segment::{Breakpoint, Budget, CutError, cut_adaptive, cut_fixed};
 
 /// Distance (mm) kept from the exact polar centre, where the bed angle is undefined.
 const CENTRE_GAP: f64 = 1e-7;
@@ -68,7 +68,7 @@ pub struct Converter<W: Write> {
     map: AxisMap,
     options: ConvertOptions,
     out: W,
-    buf: Vec<u8>,
+    buf: LineBuf,
     cuts: Vec<Breakpoint>,
     /// Cartesian machine position `[x, y, z, e]` after the last command; `None` = unknown (start, G28).
     position: Option<[f64; 4]>,
@@ -81,7 +81,7 @@ pub struct Converter<W: Write> {
     axis_scale: [f64; 2],
     axis_decimals: [u8; 2],
     rotary: [bool; 2],
-    target_deviation: f64,
+    budget: Budget,
     started: bool,
     stats: ConvertStats,
 }
@@ -94,13 +94,20 @@ impl<W: Write> Converter<W> {
         let rotary = units.map(|u| u == MotorUnit::Rad);
         let axis_scale = units.map(|u| options.axis_scale(u));
         let axis_decimals = units.map(|u| options.axis_decimals(u));
-        let target_deviation = match options.segmentation {
+        let budget = match options.segmentation {
             Segmentation::Adaptive { tolerance } => {
-                tolerance * PROBE_MARGIN - options.rounding_budget(units)
+                let rounding = options.rounding_budget(units);
+                Budget {
+                    bound: tolerance - rounding,
+                    probe: tolerance * PROBE_MARGIN - rounding,
+                }
             }
-            Segmentation::Fixed { .. } => f64::INFINITY,
+            Segmentation::Fixed { .. } => Budget {
+                bound: f64::INFINITY,
+                probe: f64::INFINITY,
+            },
         };
-        if target_deviation <= 0.0 {
+        if budget.probe <= 0.0 {
             return Err(ConvertError::Options(
                 "tolerance is below the output's rounding: raise decimals".into(),
             ));
@@ -109,7 +116,7 @@ impl<W: Write> Converter<W> {
             map,
             options,
             out,
-            buf: Vec::with_capacity(256),
+            buf: LineBuf::default(),
             cuts: Vec::new(),
             position: None,
             axes: [0.0; 2],
@@ -118,7 +125,7 @@ impl<W: Write> Converter<W> {
             axis_scale,
             axis_decimals,
             rotary,
-            target_deviation,
+            budget,
             started: false,
             stats: ConvertStats::default(),
         })
@@ -229,10 +236,10 @@ impl<W: Write> Converter<W> {
         }
         self.written.e_offset = self.written.e - new_units;
         self.buf.clear();
-        self.buf.extend_from_slice(b"G92");
-        push_word(&mut self.buf, 'E', new_units, decimals);
-        self.buf.push(b'\n');
-        self.out.write_all(&self.buf)?;
+        self.buf.push(b"G92");
+        self.buf.word('E', new_units, decimals);
+        self.buf.push(b"\n");
+        self.out.write_all(self.buf.as_bytes())?;
         Ok(())
     }
 
@@ -321,7 +328,8 @@ impl<W: Write> Converter<W> {
         let d = [to[0] - from[0], to[1] - from[1]];
         let len2 = d[0] * d[0] + d[1] * d[1];
         let t = (((c[0] - from[0]) * d[0] + (c[1] - from[1]) * d[1]) / len2).clamp(0.0, 1.0);
-        let miss = (from[0] + d[0] * t - c[0]).hypot(from[1] + d[1] * t - c[1]);
+        let (mx, my) = (from[0] + d[0] * t - c[0], from[1] + d[1] * t - c[1]);
+        let miss = (mx * mx + my * my).sqrt();
         Ok((miss <= CENTRE_SNAP).then_some(t))
     }
 
@@ -406,7 +414,7 @@ impl<W: Write> Converter<W> {
         let from = (s0, self.axes);
         let result = match self.options.segmentation {
             Segmentation::Adaptive { .. } => {
-                cut_adaptive(path, &self.map, from, s1, self.target_deviation, &mut cuts)
+                cut_adaptive(path, &self.map, from, s1, self.budget, &mut cuts)
             }
             Segmentation::Fixed {
                 segments_per_second,
@@ -457,6 +465,13 @@ impl<W: Write> Converter<W> {
         Ok(())
     }
 
+    fn tolerance(&self) -> f64 {
+        match self.options.segmentation {
+            Segmentation::Adaptive { tolerance } => tolerance,
+            Segmentation::Fixed { .. } => f64::INFINITY,
+        }
+    }
+
     fn cut_error(&self, span: Span, path: &Path, e: CutError) -> ConvertError {
         match e {
             CutError::Reach(reason) => ConvertError::Unreachable { span, reason },
@@ -466,7 +481,7 @@ impl<W: Write> Converter<W> {
                     span,
                     x: p[0],
                     y: p[1],
-                    tolerance: self.target_deviation / PROBE_MARGIN,
+                    tolerance: self.tolerance(),
                 }
             }
         }
@@ -517,12 +532,12 @@ impl<W: Write> Converter<W> {
         let z = to_units(target[2], self.options.decimals.linear);
         let e = to_units(target[3], self.options.decimals.extrusion);
         self.buf.clear();
-        self.buf.extend_from_slice(b"G0");
+        self.buf.push(b"G0");
         self.push_axes(written_axes);
-        push_word(&mut self.buf, 'Z', z, self.options.decimals.linear);
+        self.buf.word('Z', z, self.options.decimals.linear);
         self.push_e(e);
-        self.buf.push(b'\n');
-        self.out.write_all(&self.buf)?;
+        self.buf.push(b"\n");
+        self.out.write_all(self.buf.as_bytes())?;
         self.written.axes = written_axes;
         self.written.z = z;
         self.written.z_known = true;
@@ -539,29 +554,29 @@ impl<W: Write> Converter<W> {
         self.buf.clear();
         if m.named[2] {
             let z = to_units(m.target[2], self.options.decimals.linear);
-            self.buf.extend_from_slice(b"G0");
-            push_word(&mut self.buf, 'Z', z, self.options.decimals.linear);
+            self.buf.push(b"G0");
+            self.buf.word('Z', z, self.options.decimals.linear);
             self.push_e(e);
             self.written.z = z;
             self.written.z_known = true;
             self.stats.positioning_moves += 1;
         } else if de != 0.0 {
             check_feed(span, m.feed)?;
-            self.buf.extend_from_slice(b"G1");
+            self.buf.push(b"G1");
             self.push_e(e);
             let f = match self.options.feed {
                 FeedMode::InverseTime => m.feed / de.abs() * 60.0,
                 FeedMode::MotorSpace => m.feed * 60.0,
             };
             let f_decimals = feed_decimals(f);
-            self.buf.extend_from_slice(b" F");
-            push_units(&mut self.buf, to_units(f, f_decimals), f_decimals);
+            self.buf.push(b" F");
+            self.buf.number(to_units(f, f_decimals), f_decimals);
             self.stats.segments += 1;
         } else {
             return Ok(());
         }
-        self.buf.push(b'\n');
-        self.out.write_all(&self.buf)?;
+        self.buf.push(b"\n");
+        self.out.write_all(self.buf.as_bytes())?;
         self.written.e = e;
         Ok(())
     }
@@ -573,7 +588,7 @@ impl<W: Write> Converter<W> {
     fn push_axes(&mut self, units: [i64; 2]) {
         let letters = self.options.letters();
         for i in 0..2 {
-            push_word(&mut self.buf, letters[i], units[i], self.axis_decimals[i]);
+            self.buf.word(letters[i], units[i], self.axis_decimals[i]);
         }
     }
 
@@ -584,15 +599,10 @@ impl<W: Write> Converter<W> {
             return;
         }
         match self.options.extrusion {
-            Extrusion::Relative => {
-                push_word(&mut self.buf, 'E', e_units - self.written.e, decimals)
-            }
-            Extrusion::Absolute => push_word(
-                &mut self.buf,
-                'E',
-                e_units - self.written.e_offset,
-                decimals,
-            ),
+            Extrusion::Relative => self.buf.word('E', e_units - self.written.e, decimals),
+            Extrusion::Absolute => self
+                .buf
+                .word('E', e_units - self.written.e_offset, decimals),
         }
     }
 
@@ -622,12 +632,12 @@ impl<W: Write> Converter<W> {
             return Ok(false);
         }
         self.buf.clear();
-        self.buf.extend_from_slice(b"G1");
+        self.buf.push(b"G1");
         if units != self.written.axes {
             self.push_axes(units);
         }
         if !self.written.z_known || z_units != self.written.z {
-            push_word(&mut self.buf, 'Z', z_units, linear);
+            self.buf.word('Z', z_units, linear);
         }
         self.push_e(e_units);
         let f = match self.options.feed {
@@ -636,10 +646,10 @@ impl<W: Write> Converter<W> {
             FeedMode::MotorSpace => feed * 60.0,
         };
         let f_decimals = feed_decimals(f);
-        self.buf.extend_from_slice(b" F");
-        push_units(&mut self.buf, to_units(f, f_decimals), f_decimals);
-        self.buf.push(b'\n');
-        self.out.write_all(&self.buf)?;
+        self.buf.push(b" F");
+        self.buf.number(to_units(f, f_decimals), f_decimals);
+        self.buf.push(b"\n");
+        self.out.write_all(self.buf.as_bytes())?;
         self.written.axes = units;
         self.written.z = z_units;
         self.written.z_known = true;

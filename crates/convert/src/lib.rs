@@ -31,6 +31,7 @@
 //! ```
 
 pub mod axes;
+pub mod bound;
 pub mod converter;
 pub mod correction;
 pub mod error;
@@ -48,7 +49,7 @@ pub use converter::{ConvertStats, Converter};
 pub use correction::CentreCorrection;
 pub use error::ConvertError;
 pub use options::{AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Segmentation, Target};
-pub use verify::{VerifyError, VerifyReport, verify};
+pub use verify::{SegmentDeviation, VerifyError, VerifyReport, verify, verify_segments};
 
 use gcode::{Command, Commands, GcodeError, Interpreter, Reader, Spanned};
 

@@ -1,17 +1,21 @@
 //! Cutting one path into pieces that are straight in output-axis (motor) space.
 //!
 //! Adaptive rule: a piece `[s0, s1]` is accepted when the toolhead, moved linearly in motor space between
-//! the piece's end points, stays within the target of the intended sub-path. The deviation is measured by
-//! forward kinematics at three interior points (the error of a short motor-space chord is close to a
-//! parabola `u(1−u)·k`, so these find its peak within a few percent; the target keeps a margin below the
-//! tolerance for that), and a piece may not turn a rotary axis by more than [`MAX_ANGLE_STEP`], so the
-//! parabola model holds. Step sizes follow the chord-error law `e ∝ h²`: after each trial the next length
-//! is `h·√(target/e)`, so long pieces where the map is nearly linear and short ones near the polar centre
-//! or a singular SCARA pose, without a fixed number of segments per second.
+//! the piece's end points, stays within the target of the intended sub-path. For a straight line on polar
+//! axes the deviation has a closed-form upper bound ([`crate::bound`]), a guarantee that needs no forward
+//! kinematics, so those pieces may use the whole tolerance. Elsewhere (SCARA, arcs, corrected Cartesian)
+//! the deviation is measured by forward kinematics at three interior points (the error of a short
+//! motor-space chord is close to a parabola `u(1−u)·k`, so these find its peak within a few percent; the
+//! target keeps a margin below the tolerance for that), and a piece may not turn a rotary axis by more
+//! than [`MAX_ANGLE_STEP`], so the parabola model holds. Lengths follow the chord-error law `e ∝ h²`:
+//! after each trial the next length is `h·√(target/e)`, and each piece is as long as the target allows,
+//! so a move needs as few pieces as its curvature in motor space demands: long where the map is nearly
+//! linear, short near the polar centre or a singular SCARA pose, without a fixed number per second.
 
 use kinematics::{MotorUnit, ReachError};
 
 use crate::axes::AxisMap;
+use crate::bound::polar_line_bound;
 use crate::path::Path;
 
 /// Largest turn of a rotary output axis in one piece (rad).
@@ -21,6 +25,9 @@ const PROBES: [f64; 3] = [0.5, 0.25, 0.75];
 /// A piece whose middle deviates less than this share of the target needs no quarter probes: in the
 /// parabola regime the quarters deviate ¾ as much as the middle.
 const MIDDLE_ONLY: f64 = 0.25;
+/// A piece that passes with less than this share of its budget is kept in hand while a longer one is
+/// tried (by the h² rule, a piece at this load is within 5% of the longest allowed).
+const STRETCH: f64 = 0.9;
 /// A piece shorter than this (mm) that still misses the target means the map is not smooth here.
 const MIN_PIECE_MM: f64 = 1e-9;
 
@@ -67,6 +74,15 @@ pub fn chord_deviation(
     Ok(worst)
 }
 
+/// Allowed deviation of a piece, per way of measuring it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Budget {
+    /// For a guaranteed bound ([`crate::bound`]).
+    pub bound: f64,
+    /// For the probe estimate, which may miss the true peak by a few percent.
+    pub probe: f64,
+}
+
 /// Deviation of a trial piece: the middle probe, and the quarter probes unless the middle is far inside the
 /// target. A probe where the map fails counts as infinite (the piece is split).
 fn probe(
@@ -84,74 +100,103 @@ fn probe(
     middle.max(quarters)
 }
 
+/// A trial piece's deviation as a share of what it may have (≤ 1: accepted): the closed-form bound for a
+/// straight line on polar axes, the probes otherwise. The probes also need the piece to turn a rotary axis
+/// by at most [`MAX_ANGLE_STEP`]; a piece turning `k` times that counts as loaded `k²`, so the h² rule cuts
+/// it to the allowed turn.
+fn load(
+    path: &Path,
+    map: &AxisMap,
+    (s0, a0): (f64, [f64; 2]),
+    (s1, a1): (f64, [f64; 2]),
+    budget: Budget,
+) -> f64 {
+    if let (Some(polar), Path::Line { .. }) = (map.polar(), path) {
+        let (p0, p1) = (path.point(s0), path.point(s1));
+        let ends = (([p0[0], p0[1]], a0), ([p1[0], p1[1]], a1));
+        if let Some(bound) = polar_line_bound(polar, ends.0, ends.1) {
+            return bound / budget.bound;
+        }
+    }
+    let turn = turn_ratio(a0, a1, map.units().map(|u| u == MotorUnit::Rad));
+    if turn > 1.0 + 1e-9 {
+        return turn * turn;
+    }
+    probe(path, map, (s0, a0), (s1, a1), budget.probe) / budget.probe
+}
+
 /// Adaptive cut of `path` from `(s_start, a_start)` to `s_end`; pushes the end point of every piece.
+///
+/// Greedy: each piece as long as its budget allows (the h² rule proposes the length, the trial decides),
+/// which gives the fewest pieces; a piece that passes with much to spare is kept in hand while a longer one
+/// is tried. The whole move is tried first, and the last two pieces share the rest equally.
 pub fn cut_adaptive(
     path: &Path,
     map: &AxisMap,
     (s_start, a_start): (f64, [f64; 2]),
     s_end: f64,
-    target: f64,
+    budget: Budget,
     out: &mut Vec<Breakpoint>,
 ) -> Result<(), CutError> {
-    let rotary = map.units().map(|u| u == MotorUnit::Rad);
     let length = path.length().max(path.xy_length());
-    let (mut s0, mut a0) = (s_start, a_start);
     let longest = path.longest_piece();
-    let mut h = balanced(s_end - s_start, longest);
+    let (mut s0, mut a0) = (s_start, a_start);
+    let mut h = longest;
+    // A piece that passed, kept while a longer one is tried.
+    let mut in_hand: Option<Breakpoint> = None;
     while s0 < s_end {
-        let mut s1 = (s0 + h.min(longest)).min(s_end);
+        let mut s1 = s0 + last_two(s_end - s0, h.min(longest));
         // Do not leave a sliver at the end.
-        if (s_end - s1) * length < 1e-6 {
+        if s1 >= s_end || (s_end - s1) * length < 1e-6 {
             s1 = s_end;
         }
-        let trial = map.to_axes(path.point(s1), a0);
         let piece = s1 - s0;
-        // A piece that turns a rotary axis too far is shortened to the allowed turn directly.
-        let turn = match trial {
-            Ok(a1) => turn_ratio(a0, a1, rotary),
-            _ => 0.0,
-        };
-        let error = match trial {
-            Ok(_) if turn > 1.0 + 1e-9 => f64::INFINITY,
-            Ok(a1) => probe(path, map, (s0, a0), (s1, a1), target),
+        if piece <= 0.0 {
+            // Below the resolution of the path parameter: no piece short enough exists here.
+            return Err(CutError::NoConvergence { s: s0 });
+        }
+        let trial = map.to_axes(path.point(s1), a0);
+        let load = match trial {
+            Ok(a1) => load(path, map, (s0, a0), (s1, a1), budget),
             Err(ReachError::AtCentre { .. }) => f64::INFINITY,
             Err(e) => return Err(e.into()),
         };
-        let next = match trial {
-            Ok(a1) if error <= target => {
-                out.push(Breakpoint { s: s1, axes: a1 });
-                s0 = s1;
-                a0 = a1;
-                piece * growth(target, error)
+        match trial {
+            Ok(a1) if load <= 1.0 => {
+                h = piece * growth(load);
+                let passed = Breakpoint { s: s1, axes: a1 };
+                if in_hand.is_none() && s1 < s_end && load < STRETCH {
+                    in_hand = Some(passed);
+                    continue;
+                }
+                out.push(passed);
+                (s0, a0, in_hand) = (s1, a1, None);
             }
             _ => {
-                if piece * length < MIN_PIECE_MM {
+                h = piece * shrink(load);
+                if let Some(kept) = in_hand.filter(|k| s0 + h <= k.s) {
+                    // The longer trial failed short of where the kept piece ends: take that one.
+                    h = kept.s - s0;
+                    out.push(kept);
+                    (s0, a0, in_hand) = (kept.s, kept.axes, None);
+                } else if piece * length < MIN_PIECE_MM {
                     return Err(CutError::NoConvergence { s: s0 });
                 }
-                if turn > 1.0 + 1e-9 {
-                    piece / turn
-                } else {
-                    piece * shrink(target, error)
-                }
             }
-        };
-        h = balanced(s_end - s0, next.min(longest));
+        }
     }
     Ok(())
 }
 
-/// The piece length that divides `remaining` into equal pieces no longer than `preferred`, so a move does
-/// not end with a needlessly short piece.
-fn balanced(remaining: f64, preferred: f64) -> f64 {
-    if remaining <= 0.0 || preferred <= 0.0 {
-        return preferred;
-    }
-    // Not one piece more for a rounding error in the ratio.
-    let pieces = (remaining / preferred - 1e-9).ceil().max(1.0);
-    if pieces > 1e6 {
-        preferred
+/// The next piece's length when `remaining` is left and `preferred` is allowed: the rest in one piece if
+/// it fits, in two equal ones if two fit (no short last piece), else `preferred`.
+fn last_two(remaining: f64, preferred: f64) -> f64 {
+    if remaining <= preferred {
+        remaining
+    } else if remaining <= 2.0 * preferred {
+        remaining / 2.0
     } else {
-        remaining / pieces
+        preferred
     }
 }
 
@@ -187,19 +232,20 @@ fn turn_ratio(a0: [f64; 2], a1: [f64; 2], rotary: [bool; 2]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Next piece length factor after an accepted piece with deviation `error` (chord error ∝ h²).
-fn growth(target: f64, error: f64) -> f64 {
-    if error <= 0.0 {
+/// Next piece length factor after an accepted piece that used `load` of its budget (chord error ∝ h²).
+fn growth(load: f64) -> f64 {
+    if load <= 0.0 {
         4.0
     } else {
-        (0.95 * (target / error).sqrt()).clamp(0.5, 4.0)
+        (1.0 / load.sqrt()).clamp(0.5, 4.0)
     }
 }
 
-/// Piece length factor after a rejected trial.
-fn shrink(target: f64, error: f64) -> f64 {
-    if error.is_finite() {
-        (0.95 * (target / error).sqrt()).clamp(0.1, 0.7)
+/// Piece length factor after a rejected trial: just short enough by the h² law, so that no piece is
+/// shorter than it needs to be.
+fn shrink(load: f64) -> f64 {
+    if load.is_finite() {
+        (1.0 / load.sqrt()).clamp(0.1, 0.999)
     } else {
         0.5
     }
@@ -238,10 +284,10 @@ mod tests {
     }
 
     #[test]
-    fn balanced_pieces_are_equal_and_no_longer_than_asked() {
-        assert_eq!(balanced(1.0, 0.3), 0.25);
-        assert_eq!(balanced(1.0, 1.0), 1.0);
-        assert_eq!(balanced(0.9, 0.3), 0.3);
+    fn last_two_pieces_share_the_rest() {
+        assert_eq!(last_two(1.0, 0.3), 0.3);
+        assert_eq!(last_two(0.5, 0.3), 0.25);
+        assert_eq!(last_two(0.2, 0.3), 0.2);
     }
 
     #[test]
@@ -257,7 +303,11 @@ mod tests {
             };
             let start = map.to_axes(path.point(0.0), [0.0; 2]).expect("reachable");
             let mut cuts = Vec::new();
-            cut_adaptive(&path, &map, (0.0, start), 1.0, target, &mut cuts).expect("cut");
+            let budget = Budget {
+                bound: target,
+                probe: target,
+            };
+            cut_adaptive(&path, &map, (0.0, start), 1.0, budget, &mut cuts).expect("cut");
             // Each piece, checked densely, stays within the target (with the probes' few percent).
             let dense: Vec<f64> = (1..64).map(|i| f64::from(i) / 64.0).collect();
             let mut from = (0.0, start);

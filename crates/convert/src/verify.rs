@@ -61,12 +61,32 @@ struct Intended {
     path: Path,
 }
 
+/// One written segment with XY motion, as measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentDeviation {
+    /// Largest sampled distance from the intended path (mm).
+    pub max: f64,
+    /// The segment ends at its input move's end point.
+    pub ends_move: bool,
+}
+
 /// Replays `output` (written by a converter with `map` and `options`) against the `input` commands.
 pub fn verify<'a>(
     map: &AxisMap,
     options: &ConvertOptions,
     input: impl IntoIterator<Item = &'a Command>,
     output: &str,
+) -> Result<VerifyReport, VerifyError> {
+    verify_segments(map, options, input, output, |_| {})
+}
+
+/// [`verify`], also handing every measured segment to `each` in output order.
+pub fn verify_segments<'a>(
+    map: &AxisMap,
+    options: &ConvertOptions,
+    input: impl IntoIterator<Item = &'a Command>,
+    output: &str,
+    mut each: impl FnMut(SegmentDeviation),
 ) -> Result<VerifyReport, VerifyError> {
     let mut report = VerifyReport::default();
     let mut moves = Matcher {
@@ -105,7 +125,12 @@ pub fn verify<'a>(
         let Some(path) = moves.path_of(start, end, &mut report) else {
             continue;
         };
-        squares += measure(map, &path, &segment, &mut report);
+        let (sum, max) = measure(map, &path, &segment, &mut report);
+        squares += sum;
+        each(SegmentDeviation {
+            max,
+            ends_move: moves.move_finished,
+        });
     }
     moves.moves.by_ref().for_each(drop);
     report.rms_deviation = if report.samples > 0 {
@@ -119,10 +144,15 @@ pub fn verify<'a>(
     Ok(report)
 }
 
-/// Samples one written segment densely; returns the sum of squared deviations.
-fn measure(map: &AxisMap, path: &Path, segment: &WrittenSegment, report: &mut VerifyReport) -> f64 {
+/// Samples one written segment densely; returns the sum of squared deviations and the largest.
+fn measure(
+    map: &AxisMap,
+    path: &Path,
+    segment: &WrittenSegment,
+    report: &mut VerifyReport,
+) -> (f64, f64) {
     let part = path.part(0.0, 1.0);
-    let mut squares = 0.0;
+    let (mut squares, mut max) = (0.0, 0.0f64);
     for i in 0..=SAMPLES_PER_SEGMENT {
         let u = i as f64 / SAMPLES_PER_SEGMENT as f64;
         let a = [0, 1].map(|j| segment.from[j] + (segment.to[j] - segment.from[j]) * u);
@@ -133,13 +163,14 @@ fn measure(map: &AxisMap, path: &Path, segment: &WrittenSegment, report: &mut Ve
         };
         let d = part.distance(q);
         squares += d * d;
+        max = max.max(d);
         report.samples += 1;
         if d > report.max_deviation {
             report.max_deviation = d;
             report.worst_point = q;
         }
     }
-    squares
+    (squares, max)
 }
 
 /// Finds the input move each written segment belongs to (see the module documentation).

@@ -111,11 +111,16 @@ impl StepFilter {
     }
 
     /// The motor reached the pending step's full position: the step can no longer be rolled back.
-    #[inline]
+    #[inline(always)]
     pub fn commit<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
         if let Some((clock, dir)) = self.pending.take() {
-            self.emit(clock, dir, sink);
+            self.emit_pending(clock, dir, sink);
         }
+    }
+
+    #[inline(never)]
+    fn emit_pending<S: StepSink + ?Sized>(&mut self, clock: u64, dir: bool, sink: &mut S) {
+        self.emit(clock, dir, sink);
     }
 
     #[inline]

@@ -227,15 +227,24 @@ impl MotorStepper {
 
     /// Emit, at one instant, the steps a position `f` already demands (a jump by rounding between pieces),
     /// then commit the pending step if the motor has reached its commanded position.
-    #[inline]
+    /// Nearly always nothing is due (the position is where the last stretch left it), so that test is inlined
+    /// at every piece and the stepping kept out of line.
+    #[inline(always)]
     pub(crate) fn settle<S: StepSink + ?Sized>(&mut self, f: f64, time: f64, sink: &mut S) {
+        if self.wants_up(f) || self.wants_down(f) {
+            self.settle_steps(f, time, sink);
+        }
+        self.check_commit(f, sink);
+    }
+
+    #[inline(never)]
+    fn settle_steps<S: StepSink + ?Sized>(&mut self, f: f64, time: f64, sink: &mut S) {
         while self.wants_up(f) {
             self.step_up(time, sink);
         }
         while self.wants_down(f) {
             self.step_down(time, sink);
         }
-        self.check_commit(f, sink);
     }
 
     #[inline]
@@ -308,7 +317,7 @@ impl MotorStepper {
         self.net
     }
 
-    #[inline]
+    #[inline(always)]
     pub(crate) fn check_commit<S: StepSink + ?Sized>(&mut self, f: f64, sink: &mut S) {
         let commanded = self.commanded_position();
         let reached = if self.dir_up {

@@ -96,6 +96,10 @@ impl StepStats {
     /// exactly when the step `peak` places back is still inside the new window: one comparison per step,
     /// whatever the step rate. `clocks` follow at least one earlier step, so `peak ≤ index` throughout.
     fn update_peak(&mut self, clocks: &[u64]) {
+        if self.peak_unchanged_by(clocks) {
+            self.remember_tail(clocks);
+            return;
+        }
         let mut index = self.steps as usize;
         let mut peak = self.peak_in_window;
         let mut rest = clocks;
@@ -118,6 +122,34 @@ impl StepStats {
             }
         }
         self.peak_in_window = peak;
+    }
+
+    /// Whether no step of `clocks` has its step `peak` places back inside its window (the common case: the
+    /// peak is set by the fastest stretch so far). Two branch-free passes: the steps whose step `peak` back
+    /// is in the ring, then those whose step `peak` back is in `clocks` itself.
+    fn peak_unchanged_by(&self, clocks: &[u64]) -> bool {
+        let peak = self.peak_in_window;
+        let index = self.steps as usize;
+        let mask = self.recent.len() - 1;
+        let from_ring = clocks.iter().take(peak).enumerate().fold(true, |ok, (i, &clock)| {
+            ok & (self.recent[(index + i - peak) & mask] + self.window_ticks <= clock)
+        });
+        let within = clocks
+            .iter()
+            .skip(peak)
+            .zip(clocks)
+            .fold(true, |ok, (&clock, &back)| ok & (back + self.window_ticks <= clock));
+        from_ring & within
+    }
+
+    /// Keep the last clocks of `clocks` in the ring: only the last `peak` are ever looked back at.
+    fn remember_tail(&mut self, clocks: &[u64]) {
+        let mask = self.recent.len() - 1;
+        let first = clocks.len().saturating_sub(self.peak_in_window);
+        let index = self.steps as usize;
+        for (i, &clock) in clocks.iter().enumerate().skip(first) {
+            self.recent[(index + i) & mask] = clock;
+        }
     }
 }
 
@@ -197,9 +229,8 @@ mod tests {
             .unwrap_or(0)
     }
 
-    #[test]
-    fn peak_window_matches_brute_force_through_bursts() {
-        // Bursts of steps sharing ticks (the ring has to grow past 16), gaps, and steady rates.
+    /// Bursts of steps sharing ticks (the ring has to grow past 16), gaps, and steady rates.
+    fn bursty_clocks() -> Vec<u64> {
         let mut clocks = Vec::new();
         let mut clock = 5u64;
         for round in 0..40u64 {
@@ -211,6 +242,12 @@ mod tests {
             }
             clock += 16_000 * (round % 3);
         }
+        clocks
+    }
+
+    #[test]
+    fn peak_window_matches_brute_force_through_bursts() {
+        let clocks = bursty_clocks();
         let mut stats = StepStats::new(16e6);
         for &c in &clocks {
             stats.step(c, true);
@@ -221,6 +258,30 @@ mod tests {
             brute_peak(&clocks, 16_000) as f64 * 1e3
         );
         assert!(summary.peak_rate_1ms >= 44_000.0);
+    }
+
+    #[test]
+    fn runs_of_any_length_give_the_same_statistics_as_single_steps() {
+        let clocks = bursty_clocks();
+        let mut one_by_one = StepStats::new(16e6);
+        for &c in &clocks {
+            one_by_one.step(c, false);
+        }
+        for run in [1, 2, 3, 7, 16, 17, 64, 500] {
+            let mut in_runs = StepStats::new(16e6);
+            for chunk in clocks.chunks(run) {
+                in_runs.steps(chunk, false);
+            }
+            assert_eq!(
+                in_runs.summary(16e6, 0),
+                one_by_one.summary(16e6, 0),
+                "runs of {run}"
+            );
+        }
+        assert_eq!(
+            one_by_one.summary(16e6, 0).peak_rate_1ms,
+            brute_peak(&clocks, 16_000) as f64 * 1e3
+        );
     }
 
     #[test]

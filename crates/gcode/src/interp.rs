@@ -183,6 +183,9 @@ impl Interpreter {
         line: &Line<'_>,
         source: &Arc<str>,
     ) -> Option<Result<Spanned<Command>, GcodeError>> {
+        if let Some(result) = self.plain_move(line, source) {
+            return Some(result);
+        }
         let mut direct = None;
         if let Some(word) = line.command() {
             match self.command(line, word) {
@@ -208,6 +211,34 @@ impl Interpreter {
             self.comments(line);
         }
         direct
+    }
+
+    /// The hot path: a G0/G1 on a line without comments, with nothing queued and no layer start
+    /// pending, gives the same result as the general path with fewer branches and copies.
+    #[inline]
+    fn plain_move(
+        &mut self,
+        line: &Line<'_>,
+        source: &Arc<str>,
+    ) -> Option<Result<Spanned<Command>, GcodeError>> {
+        let Some(CommandWord::Code {
+            letter: b'G',
+            major: major @ (0 | 1),
+            minor: None,
+        }) = line.command()
+        else {
+            return None;
+        };
+        if line.has_comments() || self.pending_layer.is_some() || !self.queue.is_empty() {
+            return None;
+        }
+        Some(match self.linear_move(line, major == 0) {
+            Ok(value) => Ok(Spanned {
+                span: line.command_extent(),
+                value: Command::Move(value),
+            }),
+            Err(fail) => Err(GcodeError::new(source, fail.0, line.text(), fail.1)),
+        })
     }
 
     fn flush_pending_layer(&mut self) {
@@ -277,7 +308,7 @@ impl Interpreter {
     fn g_code(&mut self, line: &Line<'_>, major: u32) -> Result<Option<Command>, Fail> {
         let command = match major {
             0 | 1 => Command::Move(self.linear_move(line, major == 0)?),
-            2 | 3 => Command::Arc(self.arc(line, major == 2)?),
+            2 | 3 => Command::Arc(Box::new(self.arc(line, major == 2)?)),
             4 => self.dwell(line)?,
             17..=19 => {
                 self.plane = [Plane::Xy, Plane::Xz, Plane::Yz][(major - 17) as usize];
@@ -355,6 +386,16 @@ impl Interpreter {
         let mut named = [false; 4];
         let mut feed = None;
         let mut seen = 0u32;
+        // Per axis, decided once per line rather than per word: the factor after the unit (M221 on E
+        // only; `x * 1.0` is exact, so X Y Z round as before) and whether the value is absolute.
+        let factor = [1.0, 1.0, 1.0, self.extrude_factor];
+        let absolute_e = self.absolute_coord && self.absolute_extrude;
+        let absolute = [
+            self.absolute_coord,
+            self.absolute_coord,
+            self.absolute_coord,
+            absolute_e,
+        ];
         for word in line.words() {
             let letter_bit = bit(word.letter);
             if allowed & letter_bit == 0 || seen & letter_bit != 0 {
@@ -372,20 +413,14 @@ impl Interpreter {
                 }
                 _ => continue,
             };
-            let value = required(word)? * self.unit;
-            named[axis] = true;
-            target[axis] = if axis == 3 {
-                let value = value * self.extrude_factor;
-                if self.absolute_coord && self.absolute_extrude {
-                    value + self.base[3]
-                } else {
-                    target[3] + value
-                }
-            } else if self.absolute_coord {
-                value + self.base[axis]
+            let value = required(word)? * self.unit * factor[axis];
+            let origin = if absolute[axis] {
+                self.base[axis]
             } else {
-                target[axis] + value
+                target[axis]
             };
+            named[axis] = true;
+            target[axis] = value + origin;
             if !target[axis].is_finite() {
                 return Err(Box::new((word.span, ErrorKind::NumberOverflow)));
             }
@@ -912,7 +947,7 @@ mod tests {
             .iter()
             .filter_map(|c| {
                 if let Command::Arc(a) = c {
-                    Some(*a)
+                    Some(**a)
                 } else {
                     None
                 }

@@ -49,6 +49,12 @@ pub struct Reader<R> {
     failed_io: bool,
 }
 
+/// A line from [`Reader::next_line_or`]: what its hook made of it, or the line lexed.
+pub(crate) enum Handled<'a, T> {
+    ByHook(T),
+    Lexed(Line<'a>),
+}
+
 /// Where the next line is.
 enum Located {
     Eof,
@@ -120,6 +126,20 @@ impl<R: BufRead> Reader<R> {
     /// the following line (an I/O error ends the input).
     #[allow(clippy::should_implement_trait)]
     pub fn next_line(&mut self) -> Option<Result<Line<'_>, GcodeError>> {
+        let next = self.next_line_or(|_, _| None::<std::convert::Infallible>)?;
+        Some(next.map(|handled| match handled {
+            Handled::ByHook(never) => match never {},
+            Handled::Lexed(line) => line,
+        }))
+    }
+
+    /// [`Self::next_line`], but a line inside the input's buffer and known to be UTF-8 is first
+    /// offered to `hook` (its bytes without the line end, and its number), which may take it
+    /// instead of the lexer.
+    pub(crate) fn next_line_or<T>(
+        &mut self,
+        hook: impl FnOnce(&[u8], u64) -> Option<T>,
+    ) -> Option<Result<Handled<'_, T>, GcodeError>> {
         if self.failed_io {
             return None;
         }
@@ -160,8 +180,11 @@ impl<R: BufRead> Reader<R> {
                 }
                 let checked = end <= self.utf8_checked;
                 let bytes = &available[start..end];
+                if checked && let Some(taken) = hook(bytes, self.line) {
+                    return Some(Ok(Handled::ByHook(taken)));
+                }
                 let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
-                Some(lex_bytes(bytes, checked, self.line, out, &self.source))
+                Some(lex_bytes(bytes, checked, self.line, out, &self.source).map(Handled::Lexed))
             }
             Located::Split => {
                 self.utf8_checked = 0;
@@ -177,7 +200,7 @@ impl<R: BufRead> Reader<R> {
                     return Some(Err(self.error(span, ErrorKind::LineTooLong { limit })));
                 }
                 let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
-                Some(lex_bytes(&self.buf, false, self.line, out, &self.source))
+                Some(lex_bytes(&self.buf, false, self.line, out, &self.source).map(Handled::Lexed))
             }
         }
     }

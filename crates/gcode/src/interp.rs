@@ -17,7 +17,7 @@ use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
 use crate::lexer::{CommandWord, Line, Word, span_of};
 use crate::meta::{CommentMeta, comment_meta};
 use crate::number::parse_number;
-use crate::reader::{Handled, Reader};
+use crate::reader::Reader;
 
 /// Interpreter settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -932,20 +932,20 @@ impl<R: BufRead> Commands<R> {
                 return None;
             }
             let interpreter = &mut self.interpreter;
-            let fast_moves = self.fast_moves;
-            let next = self.reader.next_line_or(|text, number| {
-                fast_moves
-                    .then(|| interpreter.plain_move_line(text, number))
-                    .flatten()
-            });
-            match next {
+            if self.fast_moves
+                && let Some(command) = self
+                    .reader
+                    .take_line_with(|text, number| interpreter.plain_move_line(text, number))
+            {
+                return Some(Ok(command));
+            }
+            match self.reader.next_line() {
                 None => {
                     self.interpreter.finish();
                     self.finished = true;
                 }
                 Some(Err(err)) => return Some(Err(err)),
-                Some(Ok(Handled::ByHook(command))) => return Some(Ok(command)),
-                Some(Ok(Handled::Lexed(line))) => {
+                Some(Ok(line)) => {
                     if let Some(result) = self.interpreter.interpret(&line, &self.source) {
                         return Some(result);
                     }

@@ -45,14 +45,10 @@ pub struct Reader<R> {
     deferred_consume: usize,
     /// The input's buffer is known to be UTF-8 from the current line's start up to here.
     utf8_checked: usize,
+    /// An I/O error met by [`Self::take_line_with`], reported by the next [`Self::next_line`].
+    pending_io_error: Option<io::Error>,
     warnings: Warnings,
     failed_io: bool,
-}
-
-/// A line from [`Reader::next_line_or`]: what its hook made of it, or the line lexed.
-pub(crate) enum Handled<'a, T> {
-    ByHook(T),
-    Lexed(Line<'a>),
 }
 
 /// Where the next line is.
@@ -93,6 +89,7 @@ impl<R: BufRead> Reader<R> {
             bytes_consumed: 0,
             deferred_consume: 0,
             utf8_checked: 0,
+            pending_io_error: None,
             warnings: Warnings::default(),
             failed_io: false,
         }
@@ -126,28 +123,13 @@ impl<R: BufRead> Reader<R> {
     /// the following line (an I/O error ends the input).
     #[allow(clippy::should_implement_trait)]
     pub fn next_line(&mut self) -> Option<Result<Line<'_>, GcodeError>> {
-        let next = self.next_line_or(|_, _| None::<std::convert::Infallible>)?;
-        Some(next.map(|handled| match handled {
-            Handled::ByHook(never) => match never {},
-            Handled::Lexed(line) => line,
-        }))
-    }
-
-    /// [`Self::next_line`], but a line inside the input's buffer and known to be UTF-8 is first
-    /// offered to `hook` (its bytes without the line end, and its number), which may take it
-    /// instead of the lexer.
-    pub(crate) fn next_line_or<T>(
-        &mut self,
-        hook: impl FnOnce(&[u8], u64) -> Option<T>,
-    ) -> Option<Result<Handled<'_, T>, GcodeError>> {
         if self.failed_io {
             return None;
         }
-        if self.deferred_consume > 0 {
-            let consumed = std::mem::take(&mut self.deferred_consume);
-            self.input.consume(consumed);
-            self.utf8_checked = self.utf8_checked.saturating_sub(consumed);
+        if let Some(err) = self.pending_io_error.take() {
+            return Some(Err(self.io_error(&err)));
         }
+        self.consume_deferred();
         let located = match self.locate_line() {
             Ok(located) => located,
             Err(err) => return Some(Err(self.io_error(&err))),
@@ -180,11 +162,8 @@ impl<R: BufRead> Reader<R> {
                 }
                 let checked = end <= self.utf8_checked;
                 let bytes = &available[start..end];
-                if checked && let Some(taken) = hook(bytes, self.line) {
-                    return Some(Ok(Handled::ByHook(taken)));
-                }
                 let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
-                Some(lex_bytes(bytes, checked, self.line, out, &self.source).map(Handled::Lexed))
+                Some(lex_bytes(bytes, checked, self.line, out, &self.source))
             }
             Located::Split => {
                 self.utf8_checked = 0;
@@ -200,8 +179,71 @@ impl<R: BufRead> Reader<R> {
                     return Some(Err(self.error(span, ErrorKind::LineTooLong { limit })));
                 }
                 let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
-                Some(lex_bytes(&self.buf, false, self.line, out, &self.source).map(Handled::Lexed))
+                Some(lex_bytes(&self.buf, false, self.line, out, &self.source))
             }
+        }
+    }
+
+    /// Offers the next line to `take` (its bytes without the line end, and its number) when it lies
+    /// in the input's buffer and is known to be UTF-8. The line is consumed when `take` gives
+    /// `Some`; otherwise nothing changes and [`Self::next_line`] reads it as usual.
+    pub(crate) fn take_line_with<T>(
+        &mut self,
+        take: impl FnOnce(&[u8], u64) -> Option<T>,
+    ) -> Option<T> {
+        if self.failed_io || self.pending_io_error.is_some() {
+            return None;
+        }
+        self.consume_deferred();
+        let skip_lf = self.skip_lf;
+        let located = self
+            .locate_line()
+            .map_err(|err| self.pending_io_error = Some(err));
+        let Ok(Located::InBuffer {
+            start,
+            end,
+            consume,
+        }) = located
+        else {
+            self.skip_lf = skip_lf;
+            return None;
+        };
+        // The same bytes again, as in `next_line`.
+        let available = match self.input.fill_buf() {
+            Ok(available) if available.len() >= end => available,
+            other => {
+                let err = other
+                    .err()
+                    .unwrap_or_else(|| io::Error::other("input buffer changed"));
+                self.pending_io_error = Some(err);
+                self.skip_lf = skip_lf;
+                return None;
+            }
+        };
+        if end > self.utf8_checked {
+            self.utf8_checked = utf8_checked_up_to(available, start.max(self.utf8_checked), end);
+        }
+        let taken = if end <= self.utf8_checked {
+            take(&available[start..end], self.line + 1)
+        } else {
+            None
+        };
+        if taken.is_some() {
+            self.line += 1;
+            self.bytes_consumed += consume as u64;
+            self.deferred_consume = consume;
+        } else {
+            self.skip_lf = skip_lf;
+        }
+        taken
+    }
+
+    /// Consumes the line handed out last.
+    fn consume_deferred(&mut self) {
+        if self.deferred_consume > 0 {
+            let consumed = std::mem::take(&mut self.deferred_consume);
+            self.input.consume(consumed);
+            self.utf8_checked = self.utf8_checked.saturating_sub(consumed);
         }
     }
 

@@ -1281,6 +1281,37 @@ mod tests {
         }
     }
 
+    /// Input that fails after its text.
+    struct FailingAfter<'a>(&'a [u8]);
+
+    impl std::io::Read for FailingAfter<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if self.0.is_empty() {
+                return Err(std::io::Error::other("disk on fire"));
+            }
+            let n = self.0.len().min(buf.len());
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn fast_path_keeps_io_errors() {
+        let text = b"G1 X1\r\nG1 X2\rG1 X3\nG1 X4";
+        for capacity in [4, 8, 64] {
+            let run = |fast_moves| {
+                let input = std::io::BufReader::with_capacity(capacity, FailingAfter(text));
+                let mut commands = Commands::from_reader(input, "t");
+                commands.fast_moves = fast_moves;
+                format!("{:?}", commands.collect::<Vec<_>>())
+            };
+            let fast = run(true);
+            assert_eq!(fast, run(false));
+            assert!(fast.contains("disk on fire"), "{fast}");
+        }
+    }
+
     #[test]
     fn fast_path_matches_the_general_path_on_the_corpus() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus");

@@ -1,7 +1,8 @@
 //! Streaming line reader: pulls lines from any `BufRead` into one reused buffer (`\n`, `\r\n` and `\r`
-//! line ends), checks UTF-8 and lexes each line. Lines inside the input's buffer are lexed in place, and
-//! their UTF-8 is checked in blocks of many lines (one long check is far cheaper than one per line). Memory is bounded by the longest line, never by the
-//! file size; lines longer than `ReaderOptions::max_line_len` are an error (and are skipped whole).
+//! line ends), checks UTF-8 and lexes each line. Lines inside the input's buffer are lexed in place,
+//! and their UTF-8 is checked in blocks of many lines (one long check costs far less than one per
+//! line). Memory is bounded by the longest line, never by the file size; lines longer than
+//! `ReaderOptions::max_line_len` are an error (and are skipped whole).
 //!
 //! Non-UTF-8 bytes: an error with line and column, except inside a `;` comment, where they are replaced
 //! by U+FFFD and reported as a [`WarningKind::LossyComment`] warning (old slicers write Latin-1 names).

@@ -98,7 +98,9 @@ pub enum Meta {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Command {
     Move(Move),
-    Arc(Arc),
+    /// Boxed: arcs are rare and twice the size of a move, and every command is moved by value
+    /// through the reader's hot path.
+    Arc(Box<Arc>),
     /// G4 (seconds; from `P` ms or `S` s as written).
     Dwell {
         seconds: f64,

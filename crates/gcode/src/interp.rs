@@ -14,8 +14,9 @@ use crate::command::{
     AccelParams, Arc as ArcMove, Command, Meta, Move, Position, Span, Spanned, VelocityLimit,
 };
 use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
-use crate::lexer::{CommandWord, Line, Word};
+use crate::lexer::{CommandWord, Line, Word, span_of};
 use crate::meta::{CommentMeta, comment_meta};
+use crate::number::parse_number;
 use crate::reader::Reader;
 
 /// Interpreter settings.
@@ -183,6 +184,9 @@ impl Interpreter {
         line: &Line<'_>,
         source: &Arc<str>,
     ) -> Option<Result<Spanned<Command>, GcodeError>> {
+        if let Some(result) = self.plain_move(line, source) {
+            return Some(result);
+        }
         let mut direct = None;
         if let Some(word) = line.command() {
             match self.command(line, word) {
@@ -208,6 +212,34 @@ impl Interpreter {
             self.comments(line);
         }
         direct
+    }
+
+    /// The hot path: a G0/G1 on a line without comments, with nothing queued and no layer start
+    /// pending, gives the same result as the general path with fewer branches and copies.
+    #[inline]
+    fn plain_move(
+        &mut self,
+        line: &Line<'_>,
+        source: &Arc<str>,
+    ) -> Option<Result<Spanned<Command>, GcodeError>> {
+        let Some(CommandWord::Code {
+            letter: b'G',
+            major: major @ (0 | 1),
+            minor: None,
+        }) = line.command()
+        else {
+            return None;
+        };
+        if line.has_comments() || self.pending_layer.is_some() || !self.queue.is_empty() {
+            return None;
+        }
+        Some(match self.linear_move(line, major == 0) {
+            Ok(value) => Ok(Spanned {
+                span: line.command_extent(),
+                value: Command::Move(value),
+            }),
+            Err(fail) => Err(GcodeError::new(source, fail.0, line.text(), fail.1)),
+        })
     }
 
     fn flush_pending_layer(&mut self) {
@@ -277,7 +309,7 @@ impl Interpreter {
     fn g_code(&mut self, line: &Line<'_>, major: u32) -> Result<Option<Command>, Fail> {
         let command = match major {
             0 | 1 => Command::Move(self.linear_move(line, major == 0)?),
-            2 | 3 => Command::Arc(self.arc(line, major == 2)?),
+            2 | 3 => Command::Arc(Box::new(self.arc(line, major == 2)?)),
             4 => self.dwell(line)?,
             17..=19 => {
                 self.plane = [Plane::Xy, Plane::Xz, Plane::Yz][(major - 17) as usize];
@@ -355,6 +387,7 @@ impl Interpreter {
         let mut named = [false; 4];
         let mut feed = None;
         let mut seen = 0u32;
+        let (factor, absolute) = self.axis_modes();
         for word in line.words() {
             let letter_bit = bit(word.letter);
             if allowed & letter_bit == 0 || seen & letter_bit != 0 {
@@ -372,25 +405,45 @@ impl Interpreter {
                 }
                 _ => continue,
             };
-            let value = required(word)? * self.unit;
             named[axis] = true;
-            target[axis] = if axis == 3 {
-                let value = value * self.extrude_factor;
-                if self.absolute_coord && self.absolute_extrude {
-                    value + self.base[3]
-                } else {
-                    target[3] + value
-                }
-            } else if self.absolute_coord {
-                value + self.base[axis]
-            } else {
-                target[axis] + value
-            };
+            target[axis] =
+                self.axis_position(axis, required(word)?, target[axis], &factor, &absolute);
             if !target[axis].is_finite() {
                 return Err(Box::new((word.span, ErrorKind::NumberOverflow)));
             }
         }
         Ok((target, named, feed))
+    }
+
+    /// Per axis, decided once per line rather than per word: the factor after the unit (M221 on E
+    /// only; `x * 1.0` is exact, so X Y Z round as without it) and whether a value is absolute.
+    #[inline]
+    fn axis_modes(&self) -> ([f64; 4], [bool; 4]) {
+        let coord = self.absolute_coord;
+        let factor = [1.0, 1.0, 1.0, self.extrude_factor];
+        (
+            factor,
+            [coord, coord, coord, coord && self.absolute_extrude],
+        )
+    }
+
+    /// Machine position of `axis` for the G-code value `value` (`current`: the position so far).
+    #[inline]
+    fn axis_position(
+        &self,
+        axis: usize,
+        value: f64,
+        current: f64,
+        factor: &[f64; 4],
+        absolute: &[bool; 4],
+    ) -> f64 {
+        let value = value * self.unit * factor[axis];
+        let origin = if absolute[axis] {
+            self.base[axis]
+        } else {
+            current
+        };
+        value + origin
     }
 
     /// Speed after this line's F word (if any), mm/s.
@@ -399,12 +452,61 @@ impl Interpreter {
         let Some(word) = word else {
             return Ok(self.speed);
         };
-        let f = required(word)?;
+        self.speed_from_f(required(word)?)
+            .ok_or_else(|| Box::new((word.span, ErrorKind::InvalidFeedRate)))
+    }
+
+    /// Speed for the F value `f`, mm/s; `None` when not a positive finite speed.
+    #[inline]
+    fn speed_from_f(&self, f: f64) -> Option<f64> {
         let speed = f * self.unit * self.speed_factor;
-        if f <= 0.0 || !speed.is_finite() || speed <= 0.0 {
-            return Err(Box::new((word.span, ErrorKind::InvalidFeedRate)));
+        (f > 0.0 && speed.is_finite() && speed > 0.0).then_some(speed)
+    }
+
+    /// The fast path for the commonest line, a plain `G0`/`G1` with blank-separated X Y Z E F words
+    /// (each once, each with a number) and nothing else: lexed and interpreted in one pass over the
+    /// bytes, without storing tokens. Any other line, and a move that would fail or warn, gives
+    /// `None` and goes through the lexer and [`Self::interpret`], which give the same command for
+    /// the lines this takes (checked by the `fast_path_*` tests).
+    fn plain_move_line(&mut self, text: &[u8], line: u64) -> Option<Spanned<Command>> {
+        if self.pending_layer.is_some() || !self.queue.is_empty() {
+            return None;
         }
-        Ok(speed)
+        let start = skip_blanks(text, 0);
+        let rapid = match text.get(start..start + 2)? {
+            [b'G' | b'g', b'0'] => true,
+            [b'G' | b'g', b'1'] => false,
+            _ => return None,
+        };
+        let command_end = start + 2;
+        let (values, params_end) = plain_move_words(text, command_end)?;
+        let (factor, absolute) = self.axis_modes();
+        let mut target = self.last;
+        let mut named = [false; 4];
+        for axis in 0..4 {
+            if let Some(value) = values[axis] {
+                named[axis] = true;
+                target[axis] = self.axis_position(axis, value, target[axis], &factor, &absolute);
+                if !target[axis].is_finite() {
+                    return None;
+                }
+            }
+        }
+        let speed = match values[4] {
+            None => self.speed,
+            Some(f) => self.speed_from_f(f)?,
+        };
+        self.last = target;
+        self.speed = speed;
+        Some(Spanned {
+            span: span_of(line, start, command_end.max(params_end)),
+            value: Command::Move(Move {
+                target,
+                named,
+                feed: speed,
+                rapid,
+            }),
+        })
     }
 
     /// G2/G3 in the XY plane, absolute mode only (as Klipper's `gcode_arcs`).
@@ -626,6 +728,52 @@ impl Interpreter {
     }
 }
 
+/// Index of the first byte from `pos` that is not a blank.
+fn skip_blanks(text: &[u8], pos: usize) -> usize {
+    let blanks = text
+        .get(pos..)
+        .unwrap_or_default()
+        .iter()
+        .take_while(|&&b| b == b' ' || b == b'\t')
+        .count();
+    pos + blanks
+}
+
+/// The X Y Z E F values of a plain move's words (`None` where absent) and the end of the last
+/// word, from `pos` just after the command word; `None` unless the rest of the line is only such
+/// words, each preceded by blanks, each letter once, each with a number the lexer would accept.
+fn plain_move_words(text: &[u8], mut pos: usize) -> Option<([Option<f64>; 5], usize)> {
+    let mut values = [None; 5];
+    let mut end = pos;
+    loop {
+        let next = skip_blanks(text, pos);
+        let Some(&letter) = text.get(next) else {
+            return Some((values, end));
+        };
+        if next == pos {
+            return None;
+        }
+        let slot = match letter.to_ascii_uppercase() {
+            b'X' => 0,
+            b'Y' => 1,
+            b'Z' => 2,
+            b'E' => 3,
+            b'F' => 4,
+            _ => return None,
+        };
+        if values[slot].is_some() {
+            return None;
+        }
+        let (value, after) = parse_number(text, next + 1).ok()?;
+        if !matches!(text.get(after), None | Some(b' ' | b'\t')) {
+            return None;
+        }
+        values[slot] = Some(value);
+        pos = after;
+        end = after;
+    }
+}
+
 /// `Other` with the command name upper-cased.
 fn other(line: &Line<'_>) -> Command {
     Command::Other {
@@ -753,6 +901,8 @@ pub struct Commands<R> {
     interpreter: Interpreter,
     source: Arc<str>,
     finished: bool,
+    /// Plain moves take [`Interpreter::plain_move_line`] (off only in tests, to compare).
+    fast_moves: bool,
 }
 
 impl<R: BufRead> Commands<R> {
@@ -763,6 +913,7 @@ impl<R: BufRead> Commands<R> {
             interpreter: Interpreter::new(options),
             source,
             finished: false,
+            fast_moves: true,
         }
     }
 
@@ -779,6 +930,14 @@ impl<R: BufRead> Commands<R> {
             }
             if self.finished {
                 return None;
+            }
+            let interpreter = &mut self.interpreter;
+            if self.fast_moves
+                && let Some(command) = self
+                    .reader
+                    .take_line_with(|text, number| interpreter.plain_move_line(text, number))
+            {
+                return Some(Ok(command));
             }
             match self.reader.next_line() {
                 None => {
@@ -912,7 +1071,7 @@ mod tests {
             .iter()
             .filter_map(|c| {
                 if let Command::Arc(a) = c {
-                    Some(*a)
+                    Some(**a)
                 } else {
                     None
                 }
@@ -1059,6 +1218,112 @@ mod tests {
             commands[4],
             Command::Meta(Meta::Feature("Perimeter".to_owned()))
         );
+    }
+
+    /// Everything a stream gives, as text (`{:?}` tells `-0.0` from `0.0`): each command or error,
+    /// the warnings, and the final state.
+    fn stream(text: &[u8], fast_moves: bool) -> String {
+        let mut commands = Commands::from_reader(text, "t");
+        commands.fast_moves = fast_moves;
+        let out: Vec<_> = commands.by_ref().collect();
+        let warnings = commands.take_warnings();
+        let state = commands.interpreter();
+        format!(
+            "{out:?}\n{warnings:?}\n{:?} {:?}",
+            state.last_position(),
+            state.speed()
+        )
+    }
+
+    #[test]
+    fn fast_path_gives_what_the_general_path_gives() {
+        let text = "G1 X1 Y2 F600\n  g0 x-1.5\tE.5 \nG1 X1 X2\nG1 X1 Q2\nG1 X\nG1 F0\nG1X1\nG01 X1\n\
+                    G1 X1e5\nG1 X1 ;c\nG91\nG1 Z.2\nM83\nG1 E-0\nG20\nG1 X1 F60\n;LAYER_CHANGE\nG1 X3\n";
+        assert_eq!(
+            stream(text.as_bytes(), true),
+            stream(text.as_bytes(), false)
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn fast_path_matches_the_general_path_on_any_lines(
+            lines in proptest::collection::vec(
+                (
+                    proptest::sample::select(vec![
+                        "G1", "G0", "g1", "G01", "G1.5", "G2", "G4", "M83", "M82", "G91", "G90",
+                        "G92 E0", "G92 X1", "M221 S150", "M220 S50", "G20", "G21", "N5 G1", " G1",
+                        ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28",
+                    ]),
+                    proptest::collection::vec(
+                        proptest::sample::select(vec![
+                            " X1.5", " Y-2", " Z.3", " E0.0123", " E-1.25", " F1800", " F0", " F-5",
+                            " X", " Q1", "X2", " x3", "\tY4", " E1e5", " X1.2.3", " ;c", " (p)",
+                            " *12", "  ", " X+5", " X5.", " Y-.5", " F9e9", " X#", " E99999999999",
+                            " Z123456789012345678901234", " I1", " E",
+                        ]),
+                        0..5,
+                    ),
+                    proptest::sample::select(vec!["\n", "\r\n", "\r"]),
+                ),
+                0..12,
+            )
+        ) {
+            let mut text = String::new();
+            for (command, words, end) in &lines {
+                text.push_str(command);
+                for word in words {
+                    text.push_str(word);
+                }
+                text.push_str(end);
+            }
+            proptest::prop_assert_eq!(stream(text.as_bytes(), true), stream(text.as_bytes(), false));
+        }
+    }
+
+    /// Input that fails after its text.
+    struct FailingAfter<'a>(&'a [u8]);
+
+    impl std::io::Read for FailingAfter<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if self.0.is_empty() {
+                return Err(std::io::Error::other("disk on fire"));
+            }
+            let n = self.0.len().min(buf.len());
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn fast_path_keeps_io_errors() {
+        let text = b"G1 X1\r\nG1 X2\rG1 X3\nG1 X4";
+        for capacity in [4, 8, 64] {
+            let run = |fast_moves| {
+                let input = std::io::BufReader::with_capacity(capacity, FailingAfter(text));
+                let mut commands = Commands::from_reader(input, "t");
+                commands.fast_moves = fast_moves;
+                format!("{:?}", commands.collect::<Vec<_>>())
+            };
+            let fast = run(true);
+            assert_eq!(fast, run(false));
+            assert!(fast.contains("disk on fire"), "{fast}");
+        }
+    }
+
+    #[test]
+    fn fast_path_matches_the_general_path_on_the_corpus() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus");
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            eprintln!("{} absent: skipped", dir.display());
+            return;
+        };
+        for path in entries.filter_map(Result::ok).map(|e| e.path()) {
+            let text = std::fs::read(&path).expect("corpus file reads");
+            let fast = stream(&text, true);
+            assert!(fast == stream(&text, false), "{}", path.display());
+        }
     }
 
     #[test]

@@ -111,14 +111,34 @@ impl LineTokens {
 }
 
 /// One lexed line: the text and its tokens.
+///
+/// The text is kept as bytes that are known to be UTF-8 (checked by the reader in large blocks, not
+/// line by line); the `&str` views are made only when asked for.
 #[derive(Debug, Clone, Copy)]
 pub struct Line<'a> {
-    text: &'a str,
+    text: &'a [u8],
     tokens: &'a LineTokens,
 }
 
+/// A `&str` view of bytes known to be UTF-8: a whole line, or a token range of one (token ranges
+/// begin and end at ASCII bytes or at the line's ends, so they are UTF-8 too). Never fails in practice;
+/// an empty text rather than a panic if that invariant were ever broken.
+pub(crate) fn utf8(bytes: &[u8]) -> &str {
+    debug_assert!(std::str::from_utf8(bytes).is_ok());
+    std::str::from_utf8(bytes).unwrap_or_default()
+}
+
 impl<'a> Line<'a> {
+    #[cfg(test)]
     pub(crate) fn new(text: &'a str, tokens: &'a LineTokens) -> Self {
+        Line {
+            text: text.as_bytes(),
+            tokens,
+        }
+    }
+
+    /// A line over bytes the caller has checked to be UTF-8.
+    pub(crate) fn from_utf8_bytes(text: &'a [u8], tokens: &'a LineTokens) -> Self {
         Line { text, tokens }
     }
 
@@ -129,7 +149,7 @@ impl<'a> Line<'a> {
 
     /// The whole line without its terminator.
     pub fn text(&self) -> &'a str {
-        self.text
+        utf8(self.text)
     }
 
     /// The `N` line number word, if any.
@@ -152,7 +172,7 @@ impl<'a> Line<'a> {
         self.tokens
             .command
             .as_ref()
-            .map(|(_, range)| &self.text[range.clone()])
+            .map(|(_, range)| utf8(&self.text[range.clone()]))
     }
 
     /// Span of the command word.
@@ -186,8 +206,8 @@ impl<'a> Line<'a> {
         let text = self.text;
         let line = self.tokens.line;
         self.tokens.ext.iter().map(move |raw| ExtParam {
-            key: &text[raw.key.0 as usize..raw.key.1 as usize],
-            value: &text[raw.value.0 as usize..raw.value.1 as usize],
+            key: utf8(&text[raw.key.0 as usize..raw.key.1 as usize]),
+            value: utf8(&text[raw.value.0 as usize..raw.value.1 as usize]),
             quoted: raw.quoted,
             span: span_of(line, raw.span_start as usize, raw.span_end as usize),
         })
@@ -202,7 +222,10 @@ impl<'a> Line<'a> {
 
     /// The text parameter of a raw-text command (`M117 Hello world` → `Hello world`).
     pub fn raw_text(&self) -> Option<&'a str> {
-        self.tokens.raw_text.as_ref().map(|r| &self.text[r.clone()])
+        self.tokens
+            .raw_text
+            .as_ref()
+            .map(|r| utf8(&self.text[r.clone()]))
     }
 
     /// Comments in order.
@@ -210,7 +233,7 @@ impl<'a> Line<'a> {
         let text = self.text;
         let line = self.tokens.line;
         self.tokens.comments.iter().map(move |raw| Comment {
-            text: &text[raw.text.0 as usize..raw.text.1 as usize],
+            text: utf8(&text[raw.text.0 as usize..raw.text.1 as usize]),
             parenthesised: raw.parenthesised,
             span: span_of(line, raw.span_start as usize, raw.span_end as usize),
         })
@@ -274,9 +297,18 @@ fn check_room(len: usize, start: usize, end: usize) -> Result<(), LexError> {
 
 /// Lexes `text` (line `line`) into `tokens`.
 pub fn lex_line(text: &str, line: u64, tokens: &mut LineTokens) -> Result<(), LexError> {
+    lex_utf8_bytes(text.as_bytes(), line, tokens)
+}
+
+/// [`lex_line`] on bytes known to be UTF-8 (the reader checks them in blocks).
+pub(crate) fn lex_utf8_bytes(
+    bytes: &[u8],
+    line: u64,
+    tokens: &mut LineTokens,
+) -> Result<(), LexError> {
     tokens.clear(line);
     let mut lexer = Lexer {
-        bytes: text.as_bytes(),
+        bytes,
         pos: 0,
         tokens,
     };

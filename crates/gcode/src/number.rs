@@ -83,6 +83,8 @@ fn digits(bytes: &[u8], start: usize, mut mantissa: u64) -> (u64, usize) {
 }
 
 /// std's correctly rounded parser for the rare long numbers; the text holds only digits and `.`.
+/// (Cold: kept out of the hot loops that call [`parse_number`].)
+#[cold]
 fn slow_parse(text: &[u8]) -> Result<f64, NumberError> {
     let text = std::str::from_utf8(text).map_err(|_| NumberError::Invalid)?;
     let value: f64 = text.parse().map_err(|_| NumberError::Invalid)?;

@@ -1,6 +1,8 @@
 //! Streaming line reader: pulls lines from any `BufRead` into one reused buffer (`\n`, `\r\n` and `\r`
-//! line ends), checks UTF-8 and lexes each line. Memory is bounded by the longest line, never by the
-//! file size; lines longer than `ReaderOptions::max_line_len` are an error (and are skipped whole).
+//! line ends), checks UTF-8 and lexes each line. Lines inside the input's buffer are lexed in place,
+//! and their UTF-8 is checked in blocks of many lines (one long check costs far less than one per
+//! line). Memory is bounded by the longest line, never by the file size; lines longer than
+//! `ReaderOptions::max_line_len` are an error (and are skipped whole).
 //!
 //! Non-UTF-8 bytes: an error with line and column, except inside a `;` comment, where they are replaced
 //! by U+FFFD and reported as a [`WarningKind::LossyComment`] warning (old slicers write Latin-1 names).
@@ -10,7 +12,7 @@ use std::sync::Arc;
 
 use crate::command::Span;
 use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
-use crate::lexer::{Line, LineTokens, lex_line, span_of};
+use crate::lexer::{Line, LineTokens, lex_utf8_bytes, span_of, utf8};
 
 /// Reader settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,6 +44,10 @@ pub struct Reader<R> {
     bytes_consumed: u64,
     /// Bytes of the line handed out last, consumed at the next call.
     deferred_consume: usize,
+    /// The input's buffer is known to be UTF-8 from the current line's start up to here.
+    utf8_checked: usize,
+    /// An I/O error met by [`Self::take_line_with`], reported by the next [`Self::next_line`].
+    pending_io_error: Option<io::Error>,
     warnings: Warnings,
     failed_io: bool,
 }
@@ -83,6 +89,8 @@ impl<R: BufRead> Reader<R> {
             skip_lf: false,
             bytes_consumed: 0,
             deferred_consume: 0,
+            utf8_checked: 0,
+            pending_io_error: None,
             warnings: Warnings::default(),
             failed_io: false,
         }
@@ -119,10 +127,10 @@ impl<R: BufRead> Reader<R> {
         if self.failed_io {
             return None;
         }
-        if self.deferred_consume > 0 {
-            self.input
-                .consume(std::mem::take(&mut self.deferred_consume));
+        if let Some(err) = self.pending_io_error.take() {
+            return Some(Err(self.io_error(&err)));
         }
+        self.consume_deferred();
         let located = match self.locate_line() {
             Ok(located) => located,
             Err(err) => return Some(Err(self.io_error(&err))),
@@ -149,11 +157,17 @@ impl<R: BufRead> Reader<R> {
                         return Some(Err(io_error(&self.source, self.line, &err)));
                     }
                 };
+                if end > self.utf8_checked {
+                    self.utf8_checked =
+                        utf8_checked_up_to(available, start.max(self.utf8_checked), end);
+                }
+                let checked = end <= self.utf8_checked;
                 let bytes = &available[start..end];
                 let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
-                Some(lex_bytes(bytes, self.line, out, &self.source))
+                Some(lex_bytes(bytes, checked, self.line, out, &self.source))
             }
             Located::Split => {
+                self.utf8_checked = 0;
                 let too_long = match self.read_raw_line() {
                     Ok(RawLine::Eof) => return None,
                     Ok(RawLine::Line { too_long }) => too_long,
@@ -166,8 +180,71 @@ impl<R: BufRead> Reader<R> {
                     return Some(Err(self.error(span, ErrorKind::LineTooLong { limit })));
                 }
                 let out = (&mut self.tokens, &mut self.lossy, &mut self.warnings);
-                Some(lex_bytes(&self.buf, self.line, out, &self.source))
+                Some(lex_bytes(&self.buf, false, self.line, out, &self.source))
             }
+        }
+    }
+
+    /// Offers the next line to `take` (its bytes without the line end, and its number) when it lies
+    /// in the input's buffer and is known to be UTF-8. The line is consumed when `take` gives
+    /// `Some`; otherwise nothing changes and [`Self::next_line`] reads it as usual.
+    pub(crate) fn take_line_with<T>(
+        &mut self,
+        take: impl FnOnce(&[u8], u64) -> Option<T>,
+    ) -> Option<T> {
+        if self.failed_io || self.pending_io_error.is_some() {
+            return None;
+        }
+        self.consume_deferred();
+        let skip_lf = self.skip_lf;
+        let located = self
+            .locate_line()
+            .map_err(|err| self.pending_io_error = Some(err));
+        let Ok(Located::InBuffer {
+            start,
+            end,
+            consume,
+        }) = located
+        else {
+            self.skip_lf = skip_lf;
+            return None;
+        };
+        // The same bytes again, as in `next_line`.
+        let available = match self.input.fill_buf() {
+            Ok(available) if available.len() >= end => available,
+            other => {
+                let err = other
+                    .err()
+                    .unwrap_or_else(|| io::Error::other("input buffer changed"));
+                self.pending_io_error = Some(err);
+                self.skip_lf = skip_lf;
+                return None;
+            }
+        };
+        if end > self.utf8_checked {
+            self.utf8_checked = utf8_checked_up_to(available, start.max(self.utf8_checked), end);
+        }
+        let taken = if end <= self.utf8_checked {
+            take(&available[start..end], self.line + 1)
+        } else {
+            None
+        };
+        if taken.is_some() {
+            self.line += 1;
+            self.bytes_consumed += consume as u64;
+            self.deferred_consume = consume;
+        } else {
+            self.skip_lf = skip_lf;
+        }
+        taken
+    }
+
+    /// Consumes the line handed out last.
+    fn consume_deferred(&mut self) {
+        if self.deferred_consume > 0 {
+            let consumed = std::mem::take(&mut self.deferred_consume);
+            self.input.consume(consumed);
+            self.utf8_checked = self.utf8_checked.saturating_sub(consumed);
         }
     }
 
@@ -263,13 +340,30 @@ fn io_error(source: &Arc<str>, line: u64, err: &io::Error) -> GcodeError {
     )
 }
 
-/// Checks UTF-8 (lossy inside `;` comments, with a warning) and lexes one line.
+/// Bytes checked for UTF-8 at once: many lines, so that the check runs over long stretches.
+const UTF8_BLOCK: usize = 64 << 10;
+
+/// Checks `buffer` from `from` (a character boundary) over at least a block, or up to `end`;
+/// returns where the UTF-8 part ends (a line reaching past it is checked again on its own).
+fn utf8_checked_up_to(buffer: &[u8], from: usize, end: usize) -> usize {
+    let stop = buffer.len().min(end.max(from.saturating_add(UTF8_BLOCK)));
+    match std::str::from_utf8(&buffer[from..stop]) {
+        Ok(_) => stop,
+        Err(err) => from + err.valid_up_to(),
+    }
+}
+
+/// Checks UTF-8 unless `checked` (lossy inside `;` comments, with a warning) and lexes one line.
 fn lex_bytes<'a>(
     bytes: &'a [u8],
+    checked: bool,
     line: u64,
     (tokens, lossy, warnings): (&'a mut LineTokens, &'a mut String, &mut Warnings),
     source: &Arc<str>,
 ) -> Result<Line<'a>, GcodeError> {
+    if checked {
+        return lex_text(bytes, line, tokens, source);
+    }
     let text = match std::str::from_utf8(bytes) {
         Ok(text) => text,
         Err(err) => {
@@ -289,11 +383,21 @@ fn lex_bytes<'a>(
             lossy.as_str()
         }
     };
-    match lex_line(text, line, tokens) {
-        Ok(()) => Ok(Line::new(text, tokens)),
+    lex_text(text.as_bytes(), line, tokens, source)
+}
+
+/// Lexes one line of UTF-8 bytes.
+fn lex_text<'a>(
+    text: &'a [u8],
+    line: u64,
+    tokens: &'a mut LineTokens,
+    source: &Arc<str>,
+) -> Result<Line<'a>, GcodeError> {
+    match lex_utf8_bytes(text, line, tokens) {
+        Ok(()) => Ok(Line::from_utf8_bytes(text, tokens)),
         Err(err) => {
             let span = span_of(line, err.start, err.end);
-            Err(GcodeError::new(source, span, text, err.kind))
+            Err(GcodeError::new(source, span, utf8(text), err.kind))
         }
     }
 }
@@ -385,6 +489,37 @@ mod tests {
             .map(|r| r.map(|l| l.comments().next().map(|c| c.text.to_owned())));
         assert_eq!(line, Some(Ok(Some(" caf\u{fffd}".to_owned()))));
         assert_eq!(reader.warnings().total(), 1);
+    }
+
+    /// Every line's text or error, and the warning count.
+    fn outcome<R: BufRead>(input: R) -> (Vec<Result<String, String>>, u64) {
+        let mut reader = Reader::new(input, "t");
+        let mut out = Vec::new();
+        while let Some(line) = reader.next_line() {
+            out.push(line.map(|l| l.text().to_owned()).map_err(|e| e.to_string()));
+        }
+        (out, reader.warnings().total())
+    }
+
+    #[test]
+    fn utf8_checked_in_blocks_gives_the_same_lines_as_line_by_line() {
+        // Multi-byte characters straddle block ends, and bad bytes sit in code and in comments,
+        // before and after the first block end.
+        let mut data = Vec::new();
+        for i in 0..12_000 {
+            match i % 997 {
+                5 => data.extend_from_slice(b"G1 X\xff2\n"),
+                9 => data.extend_from_slice(b"G1 X1 ; caf\xe9\n"),
+                _ => data
+                    .extend_from_slice(format!("G1 X{i} ; \u{e9}\u{2013}\u{1f600}\n").as_bytes()),
+            }
+        }
+        let whole = outcome(&data[..]);
+        // A 5-byte buffer holds almost no whole line: nearly every line is copied and checked alone.
+        let line_by_line = outcome(io::BufReader::with_capacity(5, &data[..]));
+        assert_eq!(whole, line_by_line);
+        assert_eq!(whole.1, 13);
+        assert_eq!(whole.0.iter().filter(|r| r.is_err()).count(), 13);
     }
 
     #[test]

@@ -1,0 +1,52 @@
+//! The reader benchmark's work outside criterion, for profiling:
+//! `reader_profile lex|interpret PASSES FILE...` reads the files once into memory (each followed by a
+//! newline, as the bench does) and runs PASSES passes over them, printing the best pass in MB/s.
+//! With PASSES = 1 under `valgrind --tool=callgrind` it gives repeatable instruction counts, which
+//! wall-clock time on a shared machine does not.
+
+use std::time::Instant;
+
+use gcode::{Commands, Reader};
+
+fn lex_only(data: &[u8]) -> usize {
+    let mut reader = Reader::new(data, "profile");
+    let mut words = 0;
+    while let Some(line) = reader.next_line() {
+        if let Ok(line) = line {
+            words += line.words().len();
+        }
+    }
+    words
+}
+
+fn lex_and_interpret(data: &[u8]) -> usize {
+    Commands::from_reader(data, "profile")
+        .filter(Result::is_ok)
+        .count()
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let mode = args.next().unwrap_or_default();
+    let passes: u32 = args.next().and_then(|p| p.parse().ok()).unwrap_or(1);
+    let mut data = Vec::new();
+    for path in args {
+        data.extend(std::fs::read(&path).unwrap_or_default());
+        data.push(b'\n');
+    }
+    let mut best = f64::INFINITY;
+    let mut count = 0;
+    for _ in 0..passes {
+        let start = Instant::now();
+        count = std::hint::black_box(match mode.as_str() {
+            "lex" => lex_only(std::hint::black_box(&data)),
+            _ => lex_and_interpret(std::hint::black_box(&data)),
+        });
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    let mb_per_s = data.len() as f64 / best / 1e6;
+    println!(
+        "{mode}: {} bytes, {count} items, best {mb_per_s:.0} MB/s",
+        data.len()
+    );
+}

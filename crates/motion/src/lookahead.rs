@@ -239,6 +239,7 @@ impl LookAhead {
 
     /// Queue a move (its junction with the previous move must already be computed). Returns true when enough
     /// time is queued that a lazy flush should be tried.
+    #[inline]
     pub fn push(&mut self, mv: Move) -> bool {
         let first = self.queue.is_empty();
         let min_move_t = mv.min_move_t;

@@ -221,6 +221,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     }
 
     /// Speed limits of the Z axis and the extruder, then into the lookahead.
+    #[inline]
     fn queue_move(&mut self, mut mv: Move, speed: f64) -> Result<(), MoveError> {
         if mv.is_kinematic && self.config.apply_z_limits && mv.axes_d[2] != 0.0 {
             let z_ratio = mv.move_d / mv.axes_d[2].abs();

@@ -131,14 +131,20 @@ impl StepStats {
         let peak = self.peak_in_window;
         let index = self.steps as usize;
         let mask = self.recent.len() - 1;
-        let from_ring = clocks.iter().take(peak).enumerate().fold(true, |ok, (i, &clock)| {
-            ok & (self.recent[(index + i - peak) & mask] + self.window_ticks <= clock)
-        });
+        let from_ring = clocks
+            .iter()
+            .take(peak)
+            .enumerate()
+            .fold(true, |ok, (i, &clock)| {
+                ok & (self.recent[(index + i - peak) & mask] + self.window_ticks <= clock)
+            });
         let within = clocks
             .iter()
             .skip(peak)
             .zip(clocks)
-            .fold(true, |ok, (&clock, &back)| ok & (back + self.window_ticks <= clock));
+            .fold(true, |ok, (&clock, &back)| {
+                ok & (back + self.window_ticks <= clock)
+            });
         from_ring & within
     }
 

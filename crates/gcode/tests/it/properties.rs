@@ -122,7 +122,10 @@ proptest! {
         prop_assert!(!text.contains('e') && text != "-0" && !text.ends_with('.'), "{}", text);
         prop_assert!(!text.contains('.') || !text.ends_with('0'), "{}", text);
         let back: f64 = text.parse().expect("parses");
-        prop_assert!((back - value).abs() <= 0.5 * 10f64.powi(-i32::from(decimals)) * (1.0 + 1e-9), "{} -> {}", value, text);
+        // The text is within half a unit of its last decimal of `value`; reading it back rounds once more, by
+        // at most half an ulp (about 6e-11 near 1e6, more than a relative 1e-9 of the half unit there).
+        let half_unit = 0.5 * 10f64.powi(-i32::from(decimals));
+        prop_assert!((back - value).abs() <= half_unit + f64::EPSILON * value.abs(), "{} -> {}", value, text);
     }
 
     #[test]
@@ -165,4 +168,20 @@ proptest! {
             prop_assert!(sweep <= std::f64::consts::PI + 1e-9, "short arc swept {}", sweep);
         }
     }
+}
+
+/// A value where the printed decimal and the value read back differ by more than half a unit of the last
+/// decimal (by the rounding of reading it back): found by the property above, kept as a fixed case.
+#[test]
+fn fixed_number_near_a_million_is_within_half_a_unit_and_an_ulp() {
+    let value = 916_164.176_686_5;
+    let mut out = Vec::new();
+    format_number(value, Some(6), &mut out).expect("finite");
+    let text = String::from_utf8(out).expect("ascii");
+    let back: f64 = text.parse().expect("parses");
+    assert!(
+        (back - value).abs() <= 0.5e-6 + f64::EPSILON * value,
+        "{value} -> {text}"
+    );
+    assert!(text == "916164.176686" || text == "916164.176687", "{text}");
 }

@@ -173,6 +173,7 @@ impl StepSink for StepStats {
         let rest = if self.steps == 0 {
             // The first step: a window of one, no interval yet.
             self.first_clock = first;
+            self.last_clock = first;
             self.recent[0] = first;
             self.steps = 1;
             later
@@ -180,7 +181,6 @@ impl StepSink for StepStats {
             clocks
         };
         let Some(&last) = rest.last() else {
-            self.last_clock = first;
             self.net += if dir { 1 } else { -1 };
             return;
         };
@@ -288,6 +288,17 @@ mod tests {
             one_by_one.summary(16e6, 0).peak_rate_1ms,
             brute_peak(&clocks, 16_000) as f64 * 1e3
         );
+    }
+
+    #[test]
+    fn first_interval_of_a_first_run_counts() {
+        let mut stats = StepStats::new(16e6);
+        stats.steps(&[1000, 1010, 20_000, 40_000], true);
+        let s = stats.summary(16e6, 0);
+        assert_eq!(s.min_interval_ticks, Some(10));
+        assert_eq!((s.steps, s.net_steps), (4, 4));
+        assert_eq!((s.first_clock, s.last_clock), (Some(1000), Some(40_000)));
+        assert_eq!(s.peak_rate_1ms, 2_000.0);
     }
 
     #[test]

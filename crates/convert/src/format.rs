@@ -3,6 +3,8 @@
 //! Values are handled as integers in units of `10^-decimals`, which is also how the converter tracks what
 //! it has written (so totals are exact sums of written values).
 
+use std::io::Write;
+
 /// `10^d` for d = 0..=18 (decimals go up to 12 for feeds; integer parts use the rest).
 const POW10: [u64; 19] = {
     let mut table = [1u64; 19];
@@ -26,50 +28,100 @@ const PAIRS: [[u8; 2]; 100] = {
 };
 
 /// `10^d` for the supported decimal counts.
+#[inline]
 pub fn scale(decimals: u8) -> f64 {
     POW10[usize::from(decimals.min(18))] as f64
 }
 
 /// `value` rounded to `decimals` places, as an integer count of `10^-decimals`.
+#[inline]
 pub fn to_units(value: f64, decimals: u8) -> i64 {
     // Round half away from zero; the cast truncates (and saturates: values here are far below 2^53).
     let scaled = value * scale(decimals);
     (scaled + 0.5f64.copysign(scaled)) as i64
 }
 
-/// One output line assembled in place (numbers written straight into it), then written with one call.
-#[derive(Debug, Clone)]
-pub struct LineBuf {
-    bytes: [u8; 256],
+/// The output assembled in one reusable buffer: lines are built straight into it (numbers included, no
+/// intermediate strings) and handed to the writer in large blocks, not line by line.
+#[derive(Clone)]
+pub struct OutBuf {
+    bytes: Box<[u8]>,
     len: usize,
 }
 
-impl Default for LineBuf {
+/// Buffer size: large enough that handing it over is rare, small enough to stay in cache.
+const CAPACITY: usize = 1 << 16;
+/// Room kept free before a line is built: a command and a handful of words, each at most
+/// [`NUMBER_MAX`] + 5 bytes (anything beyond it would be cut, never a panic).
+const LINE_ROOM: usize = 512;
+/// Room one number may need: sign, 19 integer digits, point, 18 decimals.
+const NUMBER_MAX: usize = 40;
+/// Where numbers are assembled right-aligned, then copied with one fixed-size copy.
+const SCRATCH: usize = 2 * NUMBER_MAX;
+
+impl Default for OutBuf {
     fn default() -> Self {
-        LineBuf {
-            bytes: [0; 256],
+        OutBuf {
+            bytes: vec![0; CAPACITY].into_boxed_slice(),
             len: 0,
         }
     }
 }
 
-/// Room one number may need: sign, 19 integer digits, point, 18 decimals.
-const NUMBER_MAX: usize = 40;
+impl std::fmt::Debug for OutBuf {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OutBuf").field("len", &self.len).finish()
+    }
+}
 
-impl LineBuf {
-    pub fn clear(&mut self) {
-        self.len = 0;
+impl OutBuf {
+    /// Makes room for one line of words, handing what is buffered to `out` if needed.
+    pub fn line_room<W: Write>(&mut self, out: &mut W) -> std::io::Result<()> {
+        if self.len + LINE_ROOM > self.bytes.len() {
+            self.flush_to(out)?;
+        }
+        Ok(())
     }
 
-    /// Appends `bytes`; a line never holds more than a command and five words, far below the capacity
-    /// (anything beyond it would be cut, never a panic).
+    /// Hands everything buffered to `out`.
+    pub fn flush_to<W: Write>(&mut self, out: &mut W) -> std::io::Result<()> {
+        out.write_all(&self.bytes[..self.len])?;
+        self.len = 0;
+        Ok(())
+    }
+
+    /// Appends text of any length (pass-through lines), flushing as needed.
+    pub fn text<W: Write>(&mut self, text: &[u8], out: &mut W) -> std::io::Result<()> {
+        if self.len + text.len() > self.bytes.len() {
+            self.flush_to(out)?;
+            if text.len() > self.bytes.len() {
+                return out.write_all(text);
+            }
+        }
+        self.push(text);
+        Ok(())
+    }
+
+    /// Appends `bytes` within the buffer (callers make room first with [`OutBuf::line_room`] or use
+    /// [`OutBuf::text`]); anything beyond the capacity is cut, never a panic.
+    #[inline]
     pub fn push(&mut self, bytes: &[u8]) {
         let end = (self.len + bytes.len()).min(self.bytes.len());
         self.bytes[self.len..end].copy_from_slice(&bytes[..end - self.len]);
         self.len = end;
     }
 
+    /// Appends a short constant (a command, a letter, the newline): fixed-size stores, no copy call.
+    #[inline]
+    pub fn push_array<const N: usize>(&mut self, bytes: &[u8; N]) {
+        if let Some(room) = self.bytes.get_mut(self.len..self.len + N) {
+            room.copy_from_slice(bytes);
+            self.len += N;
+        }
+    }
+
     /// Appends ` <letter><units·10^-decimals>`.
+    #[inline]
     pub fn word(&mut self, letter: char, units: i64, decimals: u8) {
         match u8::try_from(letter) {
             // The usual ASCII letter: two stores instead of a copy.
@@ -87,52 +139,63 @@ impl LineBuf {
         self.number(units, decimals);
     }
 
-    /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`), with integer
-    /// arithmetic by constants only (no division by a variable power of ten), two digits at a time.
+    /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`): assembled
+    /// right to left in a scratch array, four digits per division by a constant, then copied in one
+    /// fixed-size copy (the bytes past the number are overwritten by what follows).
+    #[inline]
     pub fn number(&mut self, units: i64, decimals: u8) {
-        if self.len + NUMBER_MAX > self.bytes.len() {
+        let Some(out) = self.bytes.get_mut(self.len..self.len + NUMBER_MAX) else {
             return;
+        };
+        let mut scratch = [b'0'; SCRATCH];
+        let decimals = usize::from(decimals.min(18));
+        let end = NUMBER_MAX;
+        let mut value = units.unsigned_abs();
+        // The fraction, zero-padded to `decimals` digits.
+        let point = end - decimals;
+        value = write_digits(&mut scratch[point..end], value);
+        // Trailing zeros are not written, nor a point with nothing after it.
+        let mut last = end;
+        while last > point && scratch[last - 1] == b'0' {
+            last -= 1;
         }
-        let mut frac_digits = usize::from(decimals.min(18));
-        let mut digits = units.unsigned_abs();
-        // Trailing zeros of the fraction are not written.
-        while frac_digits > 0 && digits.is_multiple_of(10) {
-            digits /= 10;
-            frac_digits -= 1;
+        let whole_end = if last > point {
+            scratch[point - 1] = b'.';
+            point - 1
+        } else {
+            last = point;
+            point
+        };
+        // The integer part, at least one digit.
+        let mut first = write_whole(&mut scratch[..whole_end], value);
+        if units < 0 {
+            first -= 1;
+            scratch[first] = b'-';
         }
-        let all_digits = digits.checked_ilog10().map_or(1, |l| l as usize + 1);
-        let whole_digits = all_digits.saturating_sub(frac_digits).max(1);
-        let sign = usize::from(units < 0);
-        let point = usize::from(frac_digits > 0);
-        let end = self.len + sign + whole_digits + point + frac_digits;
-        let out = &mut self.bytes[self.len..end];
-        // Right to left: fraction, point, integer part, sign.
-        let mut i = out.len();
-        digits = write_digits(&mut out[i - frac_digits..i], digits);
-        i -= frac_digits;
-        if point == 1 {
-            i -= 1;
-            out[i] = b'.';
-        }
-        write_digits(&mut out[i - whole_digits..i], digits);
-        if sign == 1 {
-            out[0] = b'-';
-        }
-        self.len = end;
+        out.copy_from_slice(&scratch[first..first + NUMBER_MAX]);
+        self.len += last - first;
     }
 
+    /// What is buffered and not yet handed to a writer.
     pub fn as_bytes(&self) -> &[u8] {
         &self.bytes[..self.len]
     }
 }
 
-/// Fills `out` with the last `out.len()` decimal digits of `value` (zero-padded); returns the digits left.
+/// Fills `out` with the last `out.len()` decimal digits of `value` (zero-padded), four at a time; returns
+/// the digits left.
+#[inline]
 fn write_digits(out: &mut [u8], mut value: u64) -> u64 {
     let mut i = out.len();
+    while i >= 4 {
+        let quad = (value % 10_000) as u32;
+        value /= 10_000;
+        out[i - 4..i - 2].copy_from_slice(&PAIRS[(quad / 100) as usize]);
+        out[i - 2..i].copy_from_slice(&PAIRS[(quad % 100) as usize]);
+        i -= 4;
+    }
     while i >= 2 {
-        let [a, b] = PAIRS[(value % 100) as usize];
-        out[i - 2] = a;
-        out[i - 1] = b;
+        out[i - 2..i].copy_from_slice(&PAIRS[(value % 100) as usize]);
         value /= 100;
         i -= 2;
     }
@@ -141,6 +204,25 @@ fn write_digits(out: &mut [u8], mut value: u64) -> u64 {
         value /= 10;
     }
     value
+}
+
+/// Writes the digits of `value` (at least one) right-aligned at the end of `out`; returns where they
+/// start. `out` holds at least 20 bytes (any u64).
+#[inline]
+fn write_whole(out: &mut [u8], mut value: u64) -> usize {
+    let mut i = out.len();
+    while value >= 100 {
+        out[i - 2..i].copy_from_slice(&PAIRS[(value % 100) as usize]);
+        value /= 100;
+        i -= 2;
+    }
+    if value >= 10 {
+        out[i - 2..i].copy_from_slice(&PAIRS[value as usize]);
+        i - 2
+    } else {
+        out[i - 1] = b'0' + value as u8;
+        i - 1
+    }
 }
 
 /// Decimals for a feed value so that its relative rounding error stays below 1e-7.
@@ -164,7 +246,7 @@ mod tests {
     use super::*;
 
     fn number(units: i64, decimals: u8) -> String {
-        let mut line = LineBuf::default();
+        let mut line = OutBuf::default();
         line.number(units, decimals);
         String::from_utf8(line.as_bytes().to_vec()).unwrap_or_default()
     }
@@ -231,7 +313,7 @@ mod tests {
 
     #[test]
     fn words_have_a_space_and_any_letter() {
-        let mut line = LineBuf::default();
+        let mut line = OutBuf::default();
         line.push(b"G1");
         line.word('X', 12345, 3);
         line.word('θ', -5, 1);

@@ -94,6 +94,7 @@ impl AxisMap {
     }
 
     /// Output axes for toolhead position `p`, angles chosen nearest `near` (unwrapped).
+    #[inline]
     pub fn to_axes(&self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
         match self {
             AxisMap::Motors {
@@ -205,8 +206,9 @@ pub struct PolarAxes {
 impl PolarAxes {
     /// The closed forms the machine declares for these motors (the hot path of cutting, without the trait
     /// call): the angle unwrapped nearest `near`; at the centre itself, radius 0 and the angle kept.
+    #[inline]
     fn to_axes(self, p: [f64; 3], near: [f64; 2]) -> Result<[f64; 2], ReachError> {
-        if !p.iter().all(|v| v.is_finite()) {
+        if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()) {
             return Err(ReachError::NotFinite);
         }
         let (x, y) = (p[0] - self.centre[0], p[1] - self.centre[1]);

@@ -5,7 +5,6 @@ use trapq::Piece;
 
 use crate::motor::clamp_ordered;
 
-
 /// A time range of a piece over which the travelled distance changes monotonically.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Span {

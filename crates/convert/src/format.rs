@@ -142,7 +142,7 @@ impl OutBuf {
     /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`): assembled
     /// right to left in a scratch array, four digits per division by a constant, then copied in one
     /// fixed-size copy (the bytes past the number are overwritten by what follows).
-    #[inline]
+    #[inline(always)]
     pub fn number(&mut self, units: i64, decimals: u8) {
         let Some(out) = self.bytes.get_mut(self.len..self.len + NUMBER_MAX) else {
             return;

@@ -144,6 +144,43 @@ impl OutBuf {
     /// fixed-size copy (the bytes past the number are overwritten by what follows).
     #[inline(always)]
     pub fn number(&mut self, units: i64, decimals: u8) {
+        let value = units.unsigned_abs();
+        if let Some((whole, fraction)) = split_eight(value, decimals) {
+            self.eight_and_eight(units < 0, whole, fraction);
+        } else {
+            self.any_number(units, decimals);
+        }
+    }
+
+    /// The usual number: at most eight integer digits and eight decimals (`fraction` holds eight digits,
+    /// padded with zeros), each part turned into eight ASCII digits at once and stored in one 8-byte write.
+    #[inline(always)]
+    fn eight_and_eight(&mut self, negative: bool, whole: u32, fraction: u32) {
+        let Some(out) = self.bytes.get_mut(self.len..self.len + 18) else {
+            return;
+        };
+        let sign = usize::from(negative);
+        out[0] = b'-';
+        let whole = eight_digits(whole);
+        // Leading zeros are not written; at least one digit is.
+        let skip = (whole.trailing_zeros() / 8).min(7);
+        let whole_len = 8 - skip as usize;
+        let text = (whole | ASCII_ZEROS) >> (8 * skip);
+        out[sign..sign + 8].copy_from_slice(&text.to_le_bytes());
+        let mut len = sign + whole_len;
+        let fraction = eight_digits(fraction);
+        // Trailing zeros are not written, nor a point with nothing after it.
+        let kept = 8 - (fraction.leading_zeros() / 8) as usize;
+        if kept > 0 {
+            out[len] = b'.';
+            out[len + 1..len + 9].copy_from_slice(&(fraction | ASCII_ZEROS).to_le_bytes());
+            len += 1 + kept;
+        }
+        self.len += len;
+    }
+
+    /// Any number [`OutBuf::number`] may be given, digit pair by digit pair.
+    fn any_number(&mut self, units: i64, decimals: u8) {
         let Some(out) = self.bytes.get_mut(self.len..self.len + NUMBER_MAX) else {
             return;
         };
@@ -180,6 +217,51 @@ impl OutBuf {
     pub fn as_bytes(&self) -> &[u8] {
         &self.bytes[..self.len]
     }
+}
+
+/// `'0'` in every byte: digit values 0..=9 per byte become ASCII by an OR.
+const ASCII_ZEROS: u64 = 0x3030_3030_3030_3030;
+
+/// `value · 10^-decimals` as an integer part below 10^8 and the first eight decimals (as an integer below
+/// 10^8), when the number is that small and has at most eight decimals; divisions by constants only.
+#[inline(always)]
+fn split_eight(value: u64, decimals: u8) -> Option<(u32, u32)> {
+    fn by<const P: u64>(value: u64) -> (u64, u64) {
+        (value / P, value % P * (100_000_000 / P))
+    }
+    let (whole, fraction) = match decimals {
+        0 => (value, 0),
+        1 => by::<10>(value),
+        2 => by::<100>(value),
+        3 => by::<1_000>(value),
+        4 => by::<10_000>(value),
+        5 => by::<100_000>(value),
+        6 => by::<1_000_000>(value),
+        7 => by::<10_000_000>(value),
+        8 => by::<100_000_000>(value),
+        _ => return None,
+    };
+    // Both below 10^8 < 2^32.
+    Some((
+        u32::try_from(whole).ok().filter(|&w| w < 100_000_000)?,
+        fraction as u32,
+    ))
+}
+
+/// The eight decimal digits of `x < 10^8` (zero-padded), one digit value per byte, the most significant
+/// in the lowest byte (so `to_le_bytes` reads them in order): halves, quarters and digits split in parallel
+/// lanes of one register by multiplications (the SWAR method Daniel Lemire describes).
+#[inline(always)]
+fn eight_digits(x: u32) -> u64 {
+    let x = u64::from(x);
+    // Lanes of 32 bits: the first four digits, the last four.
+    let halves = (x / 10_000) | ((x % 10_000) << 32);
+    // Lanes of 16 bits: digit pairs (x·10486 >> 20 is x / 100 for x < 10^4).
+    let high_pairs = ((halves * 10_486) >> 20) & ((0x7F << 32) | 0x7F);
+    let pairs = ((halves - 100 * high_pairs) << 16) | high_pairs;
+    // Lanes of 8 bits: digits (x·103 >> 10 is x / 10 for x < 100).
+    let tens = ((pairs * 103) >> 10) & ((0xF << 48) | (0xF << 32) | (0xF << 16) | 0xF);
+    ((pairs - 10 * tens) << 8) | tens
 }
 
 /// Fills `out` with the last `out.len()` decimal digits of `value` (zero-padded), four at a time; returns
@@ -308,6 +390,38 @@ mod tests {
                 };
                 assert_eq!(text, expected, "{units} at {decimals}");
             }
+        }
+    }
+
+    #[test]
+    fn eight_digits_in_order() {
+        for x in [0u32, 7, 10, 99_999_999, 12_345_678, 10_000_000, 90_807, 100] {
+            let text = (eight_digits(x) | ASCII_ZEROS).to_le_bytes();
+            assert_eq!(text, *format!("{x:08}").as_bytes(), "{x}");
+        }
+    }
+
+    #[test]
+    fn fast_and_general_numbers_agree() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        for i in 0..200_000u64 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            // Values of every size, many with trailing zeros.
+            let magnitude = seed % 10u64.pow((i % 19) as u32).max(1) / 10u64.pow((i % 5) as u32)
+                * 10u64.pow((i % 5) as u32);
+            let units = if seed & 1 == 0 {
+                magnitude as i64
+            } else {
+                -(magnitude as i64)
+            };
+            let decimals = (i % 11) as u8;
+            let mut fast = OutBuf::default();
+            fast.number(units, decimals);
+            let mut general = OutBuf::default();
+            general.any_number(units, decimals);
+            assert_eq!(fast.as_bytes(), general.as_bytes(), "{units} at {decimals}");
         }
     }
 

@@ -5,12 +5,13 @@
 
 use std::io::Write;
 
-/// `10^d` for d = 0..=18 (decimals go up to 12 for feeds; integer parts use the rest).
-const POW10: [u64; 19] = {
-    let mut table = [1u64; 19];
+/// `10^d` for d = 0..=18 (decimals go up to 12 for feeds; integer parts use the rest), as the f64 each
+/// is exactly, so scaling needs no integer conversion.
+const POW10: [f64; 19] = {
+    let mut table = [1.0; 19];
     let mut i = 1;
     while i < 19 {
-        table[i] = table[i - 1] * 10;
+        table[i] = table[i - 1] * 10.0;
         i += 1;
     }
     table
@@ -30,7 +31,7 @@ const PAIRS: [[u8; 2]; 100] = {
 /// `10^d` for the supported decimal counts.
 #[inline]
 pub fn scale(decimals: u8) -> f64 {
-    POW10[usize::from(decimals.min(18))] as f64
+    POW10[usize::from(decimals.min(18))]
 }
 
 /// `value` rounded to `decimals` places, as an integer count of `10^-decimals`.

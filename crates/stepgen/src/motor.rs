@@ -158,12 +158,12 @@ impl MotorStepper {
         if piece.duration <= 0.0 {
             return Ok(());
         }
-        if let MotorModel::Linear { coeffs } = self.spec.model {
-            if dot3(coeffs, piece.axes_r) == 0.0 {
-                // This motor does not move along the piece (Z during a layer): only a jump can step it.
-                self.settle(dot3(coeffs, piece.start_pos), piece.print_time, sink);
-                return Ok(());
-            }
+        if let MotorModel::Linear { coeffs } = self.spec.model
+            && dot3(coeffs, piece.axes_r) == 0.0
+        {
+            // This motor does not move along the piece (Z during a layer): only a jump can step it.
+            self.settle(dot3(coeffs, piece.start_pos), piece.print_time, sink);
+            return Ok(());
         }
         let (spans, count) = monotonic_spans(piece);
         for span in &spans[..count] {

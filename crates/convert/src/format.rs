@@ -122,7 +122,7 @@ impl OutBuf {
     }
 
     /// Appends ` <letter><units·10^-decimals>`.
-    #[inline]
+    #[inline(always)]
     pub fn word(&mut self, letter: char, units: i64, decimals: u8) {
         match u8::try_from(letter) {
             // The usual ASCII letter: two stores instead of a copy.

@@ -145,6 +145,15 @@ pub fn cut_adaptive(
     let mut h = longest;
     // A piece that passed (and its end point), kept while a longer one is tried.
     let mut in_hand: Option<(Breakpoint, [f64; 3])> = None;
+    // Trials on polar axes step the angle from the previous end (no atan2 per trial); the first piece of
+    // the move is written with the closed form, so rounding does not accumulate from move to move.
+    let settle = |piece: Breakpoint, end: [f64; 3], from: f64| -> Result<Breakpoint, CutError> {
+        if polar.is_some() && from == s_start {
+            let axes = map.to_axes(end, a_start)?;
+            return Ok(Breakpoint { axes, ..piece });
+        }
+        Ok(piece)
+    };
     while s0 < s_end {
         let mut s1 = s0 + last_two(s_end - s0, h.min(longest));
         // Do not leave a sliver at the end.
@@ -157,11 +166,9 @@ pub fn cut_adaptive(
             return Err(CutError::NoConvergence { s: s0 });
         }
         let p1 = path.point(s1);
-        // On polar axes the angle follows from the previous end's (no atan2 per trial); pieces from the
-        // move's start use the closed form, so rounding does not accumulate from move to move.
         let trial = match polar {
-            Some(polar) if s0 > s_start => polar.step((p0, a0), p1),
-            _ => map.to_axes(p1, a0),
+            Some(polar) => polar.step((p0, a0), p1),
+            None => map.to_axes(p1, a0),
         };
         let load = match trial {
             Ok(a1) => load(path, map, (s0, p0, a0), (s1, p1, a1), budget),
@@ -176,14 +183,16 @@ pub fn cut_adaptive(
                     in_hand = Some((passed, p1));
                     continue;
                 }
+                let passed = settle(passed, p1, s0)?;
                 out.push(passed);
-                (s0, p0, a0, in_hand) = (s1, p1, a1, None);
+                (s0, p0, a0, in_hand) = (s1, p1, passed.axes, None);
             }
             _ => {
                 h = piece * shrink(load);
                 if let Some((kept, kept_point)) = in_hand.filter(|k| s0 + h <= k.0.s) {
                     // The longer trial failed short of where the kept piece ends: take that one.
                     h = kept.s - s0;
+                    let kept = settle(kept, kept_point, s0)?;
                     out.push(kept);
                     (s0, p0, a0, in_hand) = (kept.s, kept_point, kept.axes, None);
                 } else if piece * length < MIN_PIECE_MM {

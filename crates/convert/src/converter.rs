@@ -23,7 +23,7 @@ use kinematics::{MotorUnit, ReachError, SegmentError};
 
 use crate::axes::AxisMap;
 use crate::error::ConvertError;
-use crate::format::{LineBuf, feed_decimals, scale, to_units};
+use crate::format::{OutBuf, feed_decimals, scale, to_units};
 use crate::options::{ConvertOptions, Extrusion, FeedMode, Segmentation};
 use crate::path::Path;
 use crate::segment::{Breakpoint, Budget, CutError, cut_adaptive, cut_fixed};
@@ -68,7 +68,8 @@ pub struct Converter<W: Write> {
     map: AxisMap,
     options: ConvertOptions,
     out: W,
-    buf: LineBuf,
+    /// Output not yet handed to `out`.
+    buf: OutBuf,
     cuts: Vec<Breakpoint>,
     /// Cartesian machine position `[x, y, z, e]` after the last command; `None` = unknown (start, G28).
     position: Option<[f64; 4]>,
@@ -116,7 +117,7 @@ impl<W: Write> Converter<W> {
             map,
             options,
             out,
-            buf: LineBuf::default(),
+            buf: OutBuf::default(),
             cuts: Vec::new(),
             position: None,
             axes: [0.0; 2],
@@ -157,6 +158,7 @@ impl<W: Write> Converter<W> {
         if self.options.feed == FeedMode::InverseTime {
             self.write_raw("G94")?;
         }
+        self.buf.flush_to(&mut self.out)?;
         self.out.flush()?;
         Ok((self.out, self.stats))
     }
@@ -170,10 +172,11 @@ impl<W: Write> Converter<W> {
             Extrusion::Relative => "M83",
             Extrusion::Absolute => "M82",
         };
-        writeln!(self.out, "; converted by jointspace")?;
-        writeln!(self.out, "G90\n{e_mode}")?;
+        self.write_raw("; converted by jointspace")?;
+        self.write_raw("G90")?;
+        self.write_raw(e_mode)?;
         if self.options.feed == FeedMode::InverseTime {
-            writeln!(self.out, "G93")?;
+            self.write_raw("G93")?;
         }
         Ok(())
     }
@@ -235,11 +238,10 @@ impl<W: Write> Converter<W> {
             self.written.e = to_units(p[3], decimals);
         }
         self.written.e_offset = self.written.e - new_units;
-        self.buf.clear();
-        self.buf.push(b"G92");
+        self.buf.line_room(&mut self.out)?;
+        self.buf.push_array(b"G92");
         self.buf.word('E', new_units, decimals);
-        self.buf.push(b"\n");
-        self.out.write_all(self.buf.as_bytes())?;
+        self.buf.push_array(b"\n");
         Ok(())
     }
 
@@ -531,13 +533,12 @@ impl<W: Write> Converter<W> {
         let written_axes = self.axis_units(axes);
         let z = to_units(target[2], self.options.decimals.linear);
         let e = to_units(target[3], self.options.decimals.extrusion);
-        self.buf.clear();
-        self.buf.push(b"G0");
+        self.buf.line_room(&mut self.out)?;
+        self.buf.push_array(b"G0");
         self.push_axes(written_axes);
         self.buf.word('Z', z, self.options.decimals.linear);
         self.push_e(e);
-        self.buf.push(b"\n");
-        self.out.write_all(self.buf.as_bytes())?;
+        self.buf.push_array(b"\n");
         self.written.axes = written_axes;
         self.written.z = z;
         self.written.z_known = true;
@@ -551,10 +552,10 @@ impl<W: Write> Converter<W> {
     fn write_z_and_e_only(&mut self, span: Span, m: &Move) -> Result<(), ConvertError> {
         let e = to_units(m.target[3], self.options.decimals.extrusion);
         let de = (e - self.written.e) as f64 / scale(self.options.decimals.extrusion);
-        self.buf.clear();
+        self.buf.line_room(&mut self.out)?;
         if m.named[2] {
             let z = to_units(m.target[2], self.options.decimals.linear);
-            self.buf.push(b"G0");
+            self.buf.push_array(b"G0");
             self.buf.word('Z', z, self.options.decimals.linear);
             self.push_e(e);
             self.written.z = z;
@@ -562,21 +563,20 @@ impl<W: Write> Converter<W> {
             self.stats.positioning_moves += 1;
         } else if de != 0.0 {
             check_feed(span, m.feed)?;
-            self.buf.push(b"G1");
+            self.buf.push_array(b"G1");
             self.push_e(e);
             let f = match self.options.feed {
                 FeedMode::InverseTime => m.feed / de.abs() * 60.0,
                 FeedMode::MotorSpace => m.feed * 60.0,
             };
             let f_decimals = feed_decimals(f);
-            self.buf.push(b" F");
+            self.buf.push_array(b" F");
             self.buf.number(to_units(f, f_decimals), f_decimals);
             self.stats.segments += 1;
         } else {
             return Ok(());
         }
-        self.buf.push(b"\n");
-        self.out.write_all(self.buf.as_bytes())?;
+        self.buf.push_array(b"\n");
         self.written.e = e;
         Ok(())
     }
@@ -631,8 +631,8 @@ impl<W: Write> Converter<W> {
         if motor_length == 0.0 && !extrudes && self.written.z_known {
             return Ok(false);
         }
-        self.buf.clear();
-        self.buf.push(b"G1");
+        self.buf.line_room(&mut self.out)?;
+        self.buf.push_array(b"G1");
         if units != self.written.axes {
             self.push_axes(units);
         }
@@ -646,10 +646,9 @@ impl<W: Write> Converter<W> {
             FeedMode::MotorSpace => feed * 60.0,
         };
         let f_decimals = feed_decimals(f);
-        self.buf.push(b" F");
+        self.buf.push_array(b" F");
         self.buf.number(to_units(f, f_decimals), f_decimals);
-        self.buf.push(b"\n");
-        self.out.write_all(self.buf.as_bytes())?;
+        self.buf.push_array(b"\n");
         self.written.axes = units;
         self.written.z = z_units;
         self.written.z_known = true;
@@ -658,15 +657,14 @@ impl<W: Write> Converter<W> {
     }
 
     fn write_raw(&mut self, text: &str) -> Result<(), ConvertError> {
-        self.out.write_all(text.as_bytes())?;
-        self.out.write_all(b"\n")?;
+        self.buf.text(text.as_bytes(), &mut self.out)?;
+        self.buf.text(b"\n", &mut self.out)?;
         Ok(())
     }
 
     fn write_note(&mut self, raw: &str, why: &str) -> Result<(), ConvertError> {
         let code = raw.split(';').next().unwrap_or(raw).trim();
-        writeln!(self.out, "; {code} ({why})")?;
-        Ok(())
+        self.write_raw(&format!("; {code} ({why})"))
     }
 }
 

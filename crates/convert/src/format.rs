@@ -3,12 +3,15 @@
 //! Values are handled as integers in units of `10^-decimals`, which is also how the converter tracks what
 //! it has written (so totals are exact sums of written values).
 
-/// `10^d` for d = 0..=18 (decimals go up to 12 for feeds; integer parts use the rest).
-const POW10: [u64; 19] = {
-    let mut table = [1u64; 19];
+use std::io::Write;
+
+/// `10^d` for d = 0..=18 (decimals go up to 12 for feeds; integer parts use the rest), as the f64 each
+/// is exactly, so scaling needs no integer conversion.
+const POW10: [f64; 19] = {
+    let mut table = [1.0; 19];
     let mut i = 1;
     while i < 19 {
-        table[i] = table[i - 1] * 10;
+        table[i] = table[i - 1] * 10.0;
         i += 1;
     }
     table
@@ -26,50 +29,100 @@ const PAIRS: [[u8; 2]; 100] = {
 };
 
 /// `10^d` for the supported decimal counts.
+#[inline]
 pub fn scale(decimals: u8) -> f64 {
-    POW10[usize::from(decimals.min(18))] as f64
+    POW10[usize::from(decimals.min(18))]
 }
 
 /// `value` rounded to `decimals` places, as an integer count of `10^-decimals`.
+#[inline]
 pub fn to_units(value: f64, decimals: u8) -> i64 {
     // Round half away from zero; the cast truncates (and saturates: values here are far below 2^53).
     let scaled = value * scale(decimals);
     (scaled + 0.5f64.copysign(scaled)) as i64
 }
 
-/// One output line assembled in place (numbers written straight into it), then written with one call.
-#[derive(Debug, Clone)]
-pub struct LineBuf {
-    bytes: [u8; 256],
+/// The output assembled in one reusable buffer: lines are built straight into it (numbers included, no
+/// intermediate strings) and handed to the writer in large blocks, not line by line.
+#[derive(Clone)]
+pub struct OutBuf {
+    bytes: Box<[u8]>,
     len: usize,
 }
 
-impl Default for LineBuf {
+/// Buffer size: large enough that handing it over is rare, small enough to stay in cache.
+const CAPACITY: usize = 1 << 16;
+/// Room kept free before a line is built: a command and a handful of words, each at most
+/// [`NUMBER_MAX`] + 5 bytes (anything beyond it would be cut, never a panic).
+const LINE_ROOM: usize = 512;
+/// Room one number may need: sign, 19 integer digits, point, 18 decimals.
+const NUMBER_MAX: usize = 40;
+/// Where numbers are assembled right-aligned, then copied with one fixed-size copy.
+const SCRATCH: usize = 2 * NUMBER_MAX;
+
+impl Default for OutBuf {
     fn default() -> Self {
-        LineBuf {
-            bytes: [0; 256],
+        OutBuf {
+            bytes: vec![0; CAPACITY].into_boxed_slice(),
             len: 0,
         }
     }
 }
 
-/// Room one number may need: sign, 19 integer digits, point, 18 decimals.
-const NUMBER_MAX: usize = 40;
+impl std::fmt::Debug for OutBuf {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OutBuf").field("len", &self.len).finish()
+    }
+}
 
-impl LineBuf {
-    pub fn clear(&mut self) {
-        self.len = 0;
+impl OutBuf {
+    /// Makes room for one line of words, handing what is buffered to `out` if needed.
+    pub fn line_room<W: Write>(&mut self, out: &mut W) -> std::io::Result<()> {
+        if self.len + LINE_ROOM > self.bytes.len() {
+            self.flush_to(out)?;
+        }
+        Ok(())
     }
 
-    /// Appends `bytes`; a line never holds more than a command and five words, far below the capacity
-    /// (anything beyond it would be cut, never a panic).
+    /// Hands everything buffered to `out`.
+    pub fn flush_to<W: Write>(&mut self, out: &mut W) -> std::io::Result<()> {
+        out.write_all(&self.bytes[..self.len])?;
+        self.len = 0;
+        Ok(())
+    }
+
+    /// Appends text of any length (pass-through lines), flushing as needed.
+    pub fn text<W: Write>(&mut self, text: &[u8], out: &mut W) -> std::io::Result<()> {
+        if self.len + text.len() > self.bytes.len() {
+            self.flush_to(out)?;
+            if text.len() > self.bytes.len() {
+                return out.write_all(text);
+            }
+        }
+        self.push(text);
+        Ok(())
+    }
+
+    /// Appends `bytes` within the buffer (callers make room first with [`OutBuf::line_room`] or use
+    /// [`OutBuf::text`]); anything beyond the capacity is cut, never a panic.
+    #[inline]
     pub fn push(&mut self, bytes: &[u8]) {
         let end = (self.len + bytes.len()).min(self.bytes.len());
         self.bytes[self.len..end].copy_from_slice(&bytes[..end - self.len]);
         self.len = end;
     }
 
+    /// Appends a short constant (a command, a letter, the newline): fixed-size stores, no copy call.
+    #[inline]
+    pub fn push_array<const N: usize>(&mut self, bytes: &[u8; N]) {
+        if let Some(room) = self.bytes.get_mut(self.len..self.len + N) {
+            room.copy_from_slice(bytes);
+            self.len += N;
+        }
+    }
+
     /// Appends ` <letter><units·10^-decimals>`.
+    #[inline(always)]
     pub fn word(&mut self, letter: char, units: i64, decimals: u8) {
         match u8::try_from(letter) {
             // The usual ASCII letter: two stores instead of a copy.
@@ -87,52 +140,145 @@ impl LineBuf {
         self.number(units, decimals);
     }
 
-    /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`), with integer
-    /// arithmetic by constants only (no division by a variable power of ten), two digits at a time.
+    /// Appends the decimal text of `units · 10^-decimals` (trailing zeros trimmed, no `-0`): assembled
+    /// right to left in a scratch array, four digits per division by a constant, then copied in one
+    /// fixed-size copy (the bytes past the number are overwritten by what follows).
+    #[inline(always)]
     pub fn number(&mut self, units: i64, decimals: u8) {
-        if self.len + NUMBER_MAX > self.bytes.len() {
-            return;
+        let value = units.unsigned_abs();
+        if let Some((whole, fraction)) = split_eight(value, decimals) {
+            self.eight_and_eight(units < 0, whole, fraction);
+        } else {
+            self.any_number(units, decimals);
         }
-        let mut frac_digits = usize::from(decimals.min(18));
-        let mut digits = units.unsigned_abs();
-        // Trailing zeros of the fraction are not written.
-        while frac_digits > 0 && digits.is_multiple_of(10) {
-            digits /= 10;
-            frac_digits -= 1;
-        }
-        let all_digits = digits.checked_ilog10().map_or(1, |l| l as usize + 1);
-        let whole_digits = all_digits.saturating_sub(frac_digits).max(1);
-        let sign = usize::from(units < 0);
-        let point = usize::from(frac_digits > 0);
-        let end = self.len + sign + whole_digits + point + frac_digits;
-        let out = &mut self.bytes[self.len..end];
-        // Right to left: fraction, point, integer part, sign.
-        let mut i = out.len();
-        digits = write_digits(&mut out[i - frac_digits..i], digits);
-        i -= frac_digits;
-        if point == 1 {
-            i -= 1;
-            out[i] = b'.';
-        }
-        write_digits(&mut out[i - whole_digits..i], digits);
-        if sign == 1 {
-            out[0] = b'-';
-        }
-        self.len = end;
     }
 
+    /// The usual number: at most eight integer digits and eight decimals (`fraction` holds eight digits,
+    /// padded with zeros), each part turned into eight ASCII digits at once and stored in one 8-byte write.
+    #[inline(always)]
+    fn eight_and_eight(&mut self, negative: bool, whole: u32, fraction: u32) {
+        let Some(out) = self.bytes.get_mut(self.len..self.len + 18) else {
+            return;
+        };
+        let sign = usize::from(negative);
+        out[0] = b'-';
+        let whole = eight_digits(whole);
+        // Leading zeros are not written; at least one digit is.
+        let skip = (whole.trailing_zeros() / 8).min(7);
+        let whole_len = 8 - skip as usize;
+        let text = (whole | ASCII_ZEROS) >> (8 * skip);
+        out[sign..sign + 8].copy_from_slice(&text.to_le_bytes());
+        let mut len = sign + whole_len;
+        let fraction = eight_digits(fraction);
+        // Trailing zeros are not written, nor a point with nothing after it.
+        let kept = 8 - (fraction.leading_zeros() / 8) as usize;
+        if kept > 0 {
+            out[len] = b'.';
+            out[len + 1..len + 9].copy_from_slice(&(fraction | ASCII_ZEROS).to_le_bytes());
+            len += 1 + kept;
+        }
+        self.len += len;
+    }
+
+    /// Any number [`OutBuf::number`] may be given, digit pair by digit pair.
+    fn any_number(&mut self, units: i64, decimals: u8) {
+        let Some(out) = self.bytes.get_mut(self.len..self.len + NUMBER_MAX) else {
+            return;
+        };
+        let mut scratch = [b'0'; SCRATCH];
+        let decimals = usize::from(decimals.min(18));
+        let end = NUMBER_MAX;
+        let mut value = units.unsigned_abs();
+        // The fraction, zero-padded to `decimals` digits.
+        let point = end - decimals;
+        value = write_digits(&mut scratch[point..end], value);
+        // Trailing zeros are not written, nor a point with nothing after it.
+        let mut last = end;
+        while last > point && scratch[last - 1] == b'0' {
+            last -= 1;
+        }
+        let whole_end = if last > point {
+            scratch[point - 1] = b'.';
+            point - 1
+        } else {
+            last = point;
+            point
+        };
+        // The integer part, at least one digit.
+        let mut first = write_whole(&mut scratch[..whole_end], value);
+        if units < 0 {
+            first -= 1;
+            scratch[first] = b'-';
+        }
+        out.copy_from_slice(&scratch[first..first + NUMBER_MAX]);
+        self.len += last - first;
+    }
+
+    /// What is buffered and not yet handed to a writer.
     pub fn as_bytes(&self) -> &[u8] {
         &self.bytes[..self.len]
     }
 }
 
-/// Fills `out` with the last `out.len()` decimal digits of `value` (zero-padded); returns the digits left.
+/// `'0'` in every byte: digit values 0..=9 per byte become ASCII by an OR.
+const ASCII_ZEROS: u64 = 0x3030_3030_3030_3030;
+
+/// `value · 10^-decimals` as an integer part below 10^8 and the first eight decimals (as an integer below
+/// 10^8), when the number is that small and has at most eight decimals; divisions by constants only.
+#[inline(always)]
+fn split_eight(value: u64, decimals: u8) -> Option<(u32, u32)> {
+    fn by<const P: u64>(value: u64) -> (u64, u64) {
+        (value / P, value % P * (100_000_000 / P))
+    }
+    let (whole, fraction) = match decimals {
+        0 => (value, 0),
+        1 => by::<10>(value),
+        2 => by::<100>(value),
+        3 => by::<1_000>(value),
+        4 => by::<10_000>(value),
+        5 => by::<100_000>(value),
+        6 => by::<1_000_000>(value),
+        7 => by::<10_000_000>(value),
+        8 => by::<100_000_000>(value),
+        _ => return None,
+    };
+    // Both below 10^8 < 2^32.
+    Some((
+        u32::try_from(whole).ok().filter(|&w| w < 100_000_000)?,
+        fraction as u32,
+    ))
+}
+
+/// The eight decimal digits of `x < 10^8` (zero-padded), one digit value per byte, the most significant
+/// in the lowest byte (so `to_le_bytes` reads them in order): halves, quarters and digits split in parallel
+/// lanes of one register by multiplications (the SWAR method Daniel Lemire describes).
+#[inline(always)]
+fn eight_digits(x: u32) -> u64 {
+    let x = u64::from(x);
+    // Lanes of 32 bits: the first four digits, the last four.
+    let halves = (x / 10_000) | ((x % 10_000) << 32);
+    // Lanes of 16 bits: digit pairs (x·10486 >> 20 is x / 100 for x < 10^4).
+    let high_pairs = ((halves * 10_486) >> 20) & ((0x7F << 32) | 0x7F);
+    let pairs = ((halves - 100 * high_pairs) << 16) | high_pairs;
+    // Lanes of 8 bits: digits (x·103 >> 10 is x / 10 for x < 100).
+    let tens = ((pairs * 103) >> 10) & ((0xF << 48) | (0xF << 32) | (0xF << 16) | 0xF);
+    ((pairs - 10 * tens) << 8) | tens
+}
+
+/// Fills `out` with the last `out.len()` decimal digits of `value` (zero-padded), four at a time; returns
+/// the digits left.
+#[inline]
 fn write_digits(out: &mut [u8], mut value: u64) -> u64 {
     let mut i = out.len();
+    while i >= 4 {
+        let quad = (value % 10_000) as u32;
+        value /= 10_000;
+        out[i - 4..i - 2].copy_from_slice(&PAIRS[(quad / 100) as usize]);
+        out[i - 2..i].copy_from_slice(&PAIRS[(quad % 100) as usize]);
+        i -= 4;
+    }
     while i >= 2 {
-        let [a, b] = PAIRS[(value % 100) as usize];
-        out[i - 2] = a;
-        out[i - 1] = b;
+        out[i - 2..i].copy_from_slice(&PAIRS[(value % 100) as usize]);
         value /= 100;
         i -= 2;
     }
@@ -141,6 +287,25 @@ fn write_digits(out: &mut [u8], mut value: u64) -> u64 {
         value /= 10;
     }
     value
+}
+
+/// Writes the digits of `value` (at least one) right-aligned at the end of `out`; returns where they
+/// start. `out` holds at least 20 bytes (any u64).
+#[inline]
+fn write_whole(out: &mut [u8], mut value: u64) -> usize {
+    let mut i = out.len();
+    while value >= 100 {
+        out[i - 2..i].copy_from_slice(&PAIRS[(value % 100) as usize]);
+        value /= 100;
+        i -= 2;
+    }
+    if value >= 10 {
+        out[i - 2..i].copy_from_slice(&PAIRS[value as usize]);
+        i - 2
+    } else {
+        out[i - 1] = b'0' + value as u8;
+        i - 1
+    }
 }
 
 /// Decimals for a feed value so that its relative rounding error stays below 1e-7.
@@ -164,7 +329,7 @@ mod tests {
     use super::*;
 
     fn number(units: i64, decimals: u8) -> String {
-        let mut line = LineBuf::default();
+        let mut line = OutBuf::default();
         line.number(units, decimals);
         String::from_utf8(line.as_bytes().to_vec()).unwrap_or_default()
     }
@@ -230,8 +395,40 @@ mod tests {
     }
 
     #[test]
+    fn eight_digits_in_order() {
+        for x in [0u32, 7, 10, 99_999_999, 12_345_678, 10_000_000, 90_807, 100] {
+            let text = (eight_digits(x) | ASCII_ZEROS).to_le_bytes();
+            assert_eq!(text, *format!("{x:08}").as_bytes(), "{x}");
+        }
+    }
+
+    #[test]
+    fn fast_and_general_numbers_agree() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        for i in 0..200_000u64 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            // Values of every size, many with trailing zeros.
+            let magnitude = seed % 10u64.pow((i % 19) as u32).max(1) / 10u64.pow((i % 5) as u32)
+                * 10u64.pow((i % 5) as u32);
+            let units = if seed & 1 == 0 {
+                magnitude as i64
+            } else {
+                -(magnitude as i64)
+            };
+            let decimals = (i % 11) as u8;
+            let mut fast = OutBuf::default();
+            fast.number(units, decimals);
+            let mut general = OutBuf::default();
+            general.any_number(units, decimals);
+            assert_eq!(fast.as_bytes(), general.as_bytes(), "{units} at {decimals}");
+        }
+    }
+
+    #[test]
     fn words_have_a_space_and_any_letter() {
-        let mut line = LineBuf::default();
+        let mut line = OutBuf::default();
         line.push(b"G1");
         line.word('X', 12345, 3);
         line.word('θ', -5, 1);

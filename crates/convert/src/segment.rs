@@ -107,12 +107,11 @@ fn probe(
 fn load(
     path: &Path,
     map: &AxisMap,
-    (s0, a0): (f64, [f64; 2]),
-    (s1, a1): (f64, [f64; 2]),
+    (s0, p0, a0): (f64, [f64; 3], [f64; 2]),
+    (s1, p1, a1): (f64, [f64; 3], [f64; 2]),
     budget: Budget,
 ) -> f64 {
     if let (Some(polar), Path::Line { .. }) = (map.polar(), path) {
-        let (p0, p1) = (path.point(s0), path.point(s1));
         let ends = (([p0[0], p0[1]], a0), ([p1[0], p1[1]], a1));
         if let Some(bound) = polar_line_bound(polar, ends.0, ends.1) {
             return bound / budget.bound;
@@ -140,10 +139,21 @@ pub fn cut_adaptive(
 ) -> Result<(), CutError> {
     let length = path.length().max(path.xy_length());
     let longest = path.longest_piece();
+    let polar = map.polar();
     let (mut s0, mut a0) = (s_start, a_start);
+    let mut p0 = path.point(s0);
     let mut h = longest;
-    // A piece that passed, kept while a longer one is tried.
-    let mut in_hand: Option<Breakpoint> = None;
+    // A piece that passed (and its end point), kept while a longer one is tried.
+    let mut in_hand: Option<(Breakpoint, [f64; 3])> = None;
+    // Trials on polar axes step the angle from the previous end (no atan2 per trial); the first piece of
+    // the move is written with the closed form, so rounding does not accumulate from move to move.
+    let settle = |piece: Breakpoint, end: [f64; 3], from: f64| -> Result<Breakpoint, CutError> {
+        if polar.is_some() && from == s_start {
+            let axes = map.to_axes(end, a_start)?;
+            return Ok(Breakpoint { axes, ..piece });
+        }
+        Ok(piece)
+    };
     while s0 < s_end {
         let mut s1 = s0 + last_two(s_end - s0, h.min(longest));
         // Do not leave a sliver at the end.
@@ -155,9 +165,13 @@ pub fn cut_adaptive(
             // Below the resolution of the path parameter: no piece short enough exists here.
             return Err(CutError::NoConvergence { s: s0 });
         }
-        let trial = map.to_axes(path.point(s1), a0);
+        let p1 = path.point(s1);
+        let trial = match polar {
+            Some(polar) => polar.step((p0, a0), p1),
+            None => map.to_axes(p1, a0),
+        };
         let load = match trial {
-            Ok(a1) => load(path, map, (s0, a0), (s1, a1), budget),
+            Ok(a1) => load(path, map, (s0, p0, a0), (s1, p1, a1), budget),
             Err(ReachError::AtCentre { .. }) => f64::INFINITY,
             Err(e) => return Err(e.into()),
         };
@@ -166,19 +180,21 @@ pub fn cut_adaptive(
                 h = piece * growth(load);
                 let passed = Breakpoint { s: s1, axes: a1 };
                 if in_hand.is_none() && s1 < s_end && load < STRETCH {
-                    in_hand = Some(passed);
+                    in_hand = Some((passed, p1));
                     continue;
                 }
+                let passed = settle(passed, p1, s0)?;
                 out.push(passed);
-                (s0, a0, in_hand) = (s1, a1, None);
+                (s0, p0, a0, in_hand) = (s1, p1, passed.axes, None);
             }
             _ => {
                 h = piece * shrink(load);
-                if let Some(kept) = in_hand.filter(|k| s0 + h <= k.s) {
+                if let Some((kept, kept_point)) = in_hand.filter(|k| s0 + h <= k.0.s) {
                     // The longer trial failed short of where the kept piece ends: take that one.
                     h = kept.s - s0;
+                    let kept = settle(kept, kept_point, s0)?;
                     out.push(kept);
-                    (s0, a0, in_hand) = (kept.s, kept.axes, None);
+                    (s0, p0, a0, in_hand) = (kept.s, kept_point, kept.axes, None);
                 } else if piece * length < MIN_PIECE_MM {
                     return Err(CutError::NoConvergence { s: s0 });
                 }

@@ -5,7 +5,10 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use gcode::{Commands, Reader};
+#[path = "common/mod.rs"]
+mod common;
+
+use common::{lex_and_interpret, lex_only};
 
 const TARGET_BYTES: usize = 50 << 20;
 
@@ -62,23 +65,6 @@ fn input() -> Vec<u8> {
         data.extend_from_slice(&unit);
     }
     data
-}
-
-fn lex_only(data: &[u8]) -> usize {
-    let mut reader = Reader::new(data, "bench");
-    let mut words = 0;
-    while let Some(line) = reader.next_line() {
-        if let Ok(line) = line {
-            words += line.words().len();
-        }
-    }
-    words
-}
-
-fn lex_and_interpret(data: &[u8]) -> usize {
-    Commands::from_reader(data, "bench")
-        .filter(Result::is_ok)
-        .count()
 }
 
 fn bench(c: &mut Criterion) {

@@ -6,24 +6,10 @@
 
 use std::time::Instant;
 
-use gcode::{Commands, Reader};
+#[path = "../benches/common/mod.rs"]
+mod common;
 
-fn lex_only(data: &[u8]) -> usize {
-    let mut reader = Reader::new(data, "profile");
-    let mut words = 0;
-    while let Some(line) = reader.next_line() {
-        if let Ok(line) = line {
-            words += line.words().len();
-        }
-    }
-    words
-}
-
-fn lex_and_interpret(data: &[u8]) -> usize {
-    Commands::from_reader(data, "profile")
-        .filter(Result::is_ok)
-        .count()
-}
+use common::{lex_and_interpret, lex_only};
 
 fn main() {
     let mut args = std::env::args().skip(1);

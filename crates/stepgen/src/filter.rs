@@ -42,7 +42,7 @@ impl StepFilter {
     /// non-negative.
     #[inline]
     pub fn clock_of(&self, time: f64) -> u64 {
-        ((time * self.clock_hz + 0.5) as i64).max(0) as u64
+        clock_at(time, self.clock_hz)
     }
 
     /// A new step at absolute print time `time`.
@@ -53,7 +53,8 @@ impl StepFilter {
 
     /// Steps at `print_time + t` for each `t` of `times` (non-decreasing), all in direction `dir`: the same
     /// as pushing them one by one. Only the first can meet a reversal; each later one makes the step before
-    /// it final, so those go to the sink as one slice.
+    /// it final, so the held-back step (when it goes the same way) and all but the last go to the sink as one
+    /// slice, and the last is held back in turn.
     #[inline]
     pub fn push_run<S: StepSink + ?Sized>(
         &mut self,
@@ -62,29 +63,38 @@ impl StepFilter {
         dir: bool,
         sink: &mut S,
     ) {
-        let Some((&first, rest)) = times.split_first() else {
-            return;
-        };
-        self.push_clock(self.clock_of(print_time + first), dir, sink);
-        let Some((&last, middle)) = rest.split_last() else {
+        let Some(&first) = times.first() else {
             return;
         };
         let mut count = 0;
-        if let Some((clock, _)) = self.pending.take() {
-            self.run[0] = clock.max(self.last_emitted);
-            count = 1;
-        }
-        let mut previous = if count == 1 {
-            self.run[0]
-        } else {
-            self.last_emitted
-        };
-        for chunk in middle.chunks(RUN_CAPACITY - 1) {
-            for &t in chunk {
-                previous = previous.max(self.clock_of(print_time + t));
-                self.run[count] = previous;
-                count += 1;
+        let mut previous = self.last_emitted;
+        let mut body = times;
+        if let Some((pending_clock, pending_dir)) = self.pending.take() {
+            let first_clock = self.clock_of(print_time + first);
+            if pending_dir != dir
+                && ((first_clock as i64 - pending_clock as i64) as f64) < self.window_ticks
+            {
+                self.filtered_pairs += 1;
+                body = &times[1..];
+            } else if pending_dir == dir {
+                previous = previous.max(pending_clock);
+                self.run[0] = previous;
+                count = 1;
+            } else {
+                self.emit(pending_clock, pending_dir, sink);
+                previous = self.last_emitted;
             }
+        }
+        let Some((&last, middle)) = body.split_last() else {
+            return;
+        };
+        let clock_hz = self.clock_hz;
+        for chunk in middle.chunks(RUN_CAPACITY - 1) {
+            for (slot, &t) in self.run[count..].iter_mut().zip(chunk) {
+                previous = previous.max(clock_at(print_time + t, clock_hz));
+                *slot = previous;
+            }
+            count += chunk.len();
             sink.steps(&self.run[..count], dir);
             count = 0;
         }
@@ -140,6 +150,12 @@ impl StepFilter {
     pub fn clock_hz(&self) -> f64 {
         self.clock_hz
     }
+}
+
+/// See [`StepFilter::clock_of`].
+#[inline(always)]
+fn clock_at(time: f64, clock_hz: f64) -> u64 {
+    ((time * clock_hz + 0.5) as i64).max(0) as u64
 }
 
 #[cfg(test)]
@@ -213,6 +229,45 @@ mod tests {
             }]
         );
     }
+
+    proptest::proptest! {
+        /// Runs of steps (with quick and slow reversals between them, and commits) give the same stream and
+        /// count of removed pairs as the same steps pushed one at a time.
+        #[test]
+        fn runs_match_single_steps(
+            runs in proptest::collection::vec(
+                (1usize..150, proptest::bool::ANY, 1u32..2000, proptest::bool::ANY),
+                1..12,
+            )
+        ) {
+            let mut by_run = StepFilter::new(16e6, 750e-6);
+            let mut by_step = StepFilter::new(16e6, 750e-6);
+            let (mut out_run, mut out_step) = (Vec::new(), Vec::new());
+            let mut print_time = 1.0;
+            for (len, dir, gap_us, commit) in runs {
+                // Steps `gap_us` µs apart, some sharing a tick after rounding.
+                let times: Vec<f64> = (0..len).map(|i| (i / 2) as f64 * gap_us as f64 * 1e-6).collect();
+                for chunk in times.chunks(STEP_BATCH_FOR_TEST) {
+                    by_run.push_run(chunk, print_time, dir, &mut out_run);
+                }
+                for &t in &times {
+                    by_step.push(print_time + t, dir, &mut out_step);
+                }
+                if commit {
+                    by_run.commit(&mut out_run);
+                    by_step.commit(&mut out_step);
+                }
+                print_time += times.last().copied().unwrap_or(0.0) + gap_us as f64 * 0.7e-6;
+            }
+            by_run.commit(&mut out_run);
+            by_step.commit(&mut out_step);
+            proptest::prop_assert_eq!(out_run, out_step);
+            proptest::prop_assert_eq!(by_run.filtered_pairs(), by_step.filtered_pairs());
+        }
+    }
+
+    /// Step generation hands runs of at most this many steps; longer ones exercise the chunking too.
+    const STEP_BATCH_FOR_TEST: usize = 100;
 
     #[test]
     fn committed_step_is_not_rolled_back() {

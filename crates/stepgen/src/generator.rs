@@ -36,38 +36,15 @@ impl<'k> StepGenerator<'k> {
         extruder: Option<ExtruderSpec>,
         config: StepGenConfig,
     ) -> Result<Self, StepError> {
-        let count = kin.motors().len();
-        let mut start_motors = vec![0.0; count];
-        kin.inverse(start, &mut start_motors)
-            .map_err(|source| StepError::Unreachable {
-                motor: "start pose".to_string(),
-                time: 0.0,
-                source,
-            })?;
-        let mut motors = Vec::with_capacity(count + 1);
-        for (index, motor) in kin.motors().iter().enumerate() {
-            let spec = MotorSpec {
-                name: motor.name.clone(),
-                step_distance: motor.step_distance,
-                model: MotorModel::from_map(kin.motor_map(index), index),
-            };
-            check_step_distance(&spec)?;
-            let stepper = MotorStepper::new(spec, start_motors[index], &start_motors, config);
+        let start_motors = start_motor_positions(kin, start)?;
+        let mut motors = Vec::with_capacity(start_motors.len() + 1);
+        for index in 0..start_motors.len() {
+            let stepper = toolhead_motor(kin, index, &start_motors, config)?;
             motors.push((Queue::Toolhead, stepper));
         }
         if let Some(e) = extruder {
-            let spec = MotorSpec {
-                name: e.name,
-                step_distance: e.step_distance,
-                model: MotorModel::Linear {
-                    coeffs: [1.0, 0.0, 0.0],
-                },
-            };
-            check_step_distance(&spec)?;
-            motors.push((
-                Queue::Extruder,
-                MotorStepper::new(spec, e.start_position, &[], config),
-            ));
+            let start_position = e.start_position;
+            motors.push((Queue::Extruder, extruder_motor(e, start_position, config)?));
         }
         Ok(StepGenerator { kin, motors })
     }
@@ -168,6 +145,60 @@ impl<'k> StepGenerator<'k> {
             )))
         }
     }
+}
+
+/// Every toolhead motor's position at toolhead pose `start`.
+pub(crate) fn start_motor_positions(
+    kin: &dyn Kinematics,
+    start: Vec3,
+) -> Result<Vec<f64>, StepError> {
+    let mut start_motors = vec![0.0; kin.motors().len()];
+    kin.inverse(start, &mut start_motors)
+        .map_err(|source| StepError::Unreachable {
+            motor: "start pose".to_string(),
+            time: 0.0,
+            source,
+        })?;
+    Ok(start_motors)
+}
+
+/// Toolhead motor `index` of `kin`, starting where `start_motors` (from [`start_motor_positions`]) puts it.
+pub(crate) fn toolhead_motor(
+    kin: &dyn Kinematics,
+    index: usize,
+    start_motors: &[f64],
+    config: StepGenConfig,
+) -> Result<MotorStepper, StepError> {
+    let motor = &kin.motors()[index];
+    let spec = MotorSpec {
+        name: motor.name.clone(),
+        step_distance: motor.step_distance,
+        model: MotorModel::from_map(kin.motor_map(index), index),
+    };
+    check_step_distance(&spec)?;
+    Ok(MotorStepper::new(
+        spec,
+        start_motors[index],
+        start_motors,
+        config,
+    ))
+}
+
+/// The extruder motor, starting at `start_position` (mm of filament).
+pub(crate) fn extruder_motor(
+    extruder: ExtruderSpec,
+    start_position: f64,
+    config: StepGenConfig,
+) -> Result<MotorStepper, StepError> {
+    let spec = MotorSpec {
+        name: extruder.name,
+        step_distance: extruder.step_distance,
+        model: MotorModel::Linear {
+            coeffs: [1.0, 0.0, 0.0],
+        },
+    };
+    check_step_distance(&spec)?;
+    Ok(MotorStepper::new(spec, start_position, &[], config))
 }
 
 fn check_step_distance(spec: &MotorSpec) -> Result<(), StepError> {

@@ -3,16 +3,20 @@
 //! finishes the running motors and restarts them at the new pose, as Klipper re-seats its steppers.
 
 use kinematics::{Kinematics, Vec3};
+use std::collections::VecDeque;
+use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use trapq::{MoveSink, Piece, Queue, TrapezoidMove};
 
 use crate::error::StepError;
-use crate::generator::{ExtruderSpec, StepGenerator};
-use crate::motor::StepGenConfig;
+use crate::generator::{
+    ExtruderSpec, StepGenerator, extruder_motor, start_motor_positions, toolhead_motor,
+};
+use crate::motor::{MotorStepper, StepGenConfig};
 use crate::sink::StepSink;
 
 /// Pieces buffered per queue before the motors run over them.
-const CHUNK_PIECES: usize = 8192;
+const CHUNK_PIECES: usize = 4096;
 
 /// Streams planned moves into per-motor step sinks.
 #[derive(Debug)]
@@ -139,64 +143,77 @@ impl<S: StepSink + Send> MoveSink for StepPipeline<'_, S> {
     }
 }
 
-/// What the planning thread hands the stepping thread.
-enum Message {
-    Chunk {
-        toolhead: Vec<Piece>,
-        extruder: Vec<Piece>,
-    },
-    SetPosition {
-        xyz: Vec3,
-        e: f64,
-    },
-}
-
-/// Chunks in flight between the threads (bounded, so memory stays bounded).
-const CHUNKS_IN_FLIGHT: usize = 4;
-
-/// The planning side of [`run_in_parallel`]: a [`MoveSink`] that buffers pieces and sends full chunks over.
-#[derive(Debug)]
-pub struct ChunkSender {
-    to_stepper: SyncSender<Message>,
-    recycled: Receiver<(Vec<Piece>, Vec<Piece>)>,
+/// One chunk of planned pieces, shared by every motor's thread.
+#[derive(Debug, Default)]
+struct Chunk {
     toolhead: Vec<Piece>,
     extruder: Vec<Piece>,
-    /// The stepping thread stopped (it failed); later moves are dropped and the error is reported at the end.
-    closed: bool,
 }
 
-impl std::fmt::Debug for Message {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Message::Chunk { toolhead, extruder } => {
-                write!(f, "Chunk({}, {})", toolhead.len(), extruder.len())
-            }
-            Message::SetPosition { xyz, e } => write!(f, "SetPosition({xyz:?}, {e})"),
-        }
-    }
+/// What the planning thread hands each motor's thread.
+#[derive(Debug, Clone)]
+enum Message {
+    Chunk(Arc<Chunk>),
+    SetPosition { xyz: Vec3, e: f64 },
+}
+
+/// Chunks queued per motor (bounded, so memory stays bounded and the planner waits for the slowest motor).
+const CHUNKS_IN_FLIGHT: usize = 16;
+
+/// The planning side of [`run_in_parallel`]: a [`MoveSink`] that buffers pieces and sends full chunks to
+/// every motor's thread.
+#[derive(Debug)]
+pub struct ChunkSender {
+    to_motors: Vec<SyncSender<Message>>,
+    /// Chunks sent, oldest first; one that every motor has dropped is reused (no allocation per chunk).
+    sent: VecDeque<Arc<Chunk>>,
+    buffer: Chunk,
+    /// A motor's thread stopped (it failed or was cancelled); later moves are dropped and the error is
+    /// reported at the end.
+    closed: bool,
 }
 
 impl ChunkSender {
     fn send_buffered(&mut self) {
-        if self.toolhead.is_empty() && self.extruder.is_empty() {
+        if self.buffer.toolhead.is_empty() && self.buffer.extruder.is_empty() {
             return;
         }
-        let (mut toolhead, mut extruder) = self.recycled.try_recv().unwrap_or_else(|_| {
-            (
-                Vec::with_capacity(CHUNK_PIECES),
-                Vec::with_capacity(CHUNK_PIECES),
-            )
-        });
-        std::mem::swap(&mut toolhead, &mut self.toolhead);
-        std::mem::swap(&mut extruder, &mut self.extruder);
-        self.toolhead.clear();
-        self.extruder.clear();
-        self.send(Message::Chunk { toolhead, extruder });
+        let next = self.reusable_chunk();
+        let full = std::mem::replace(&mut self.buffer, next);
+        let chunk = Arc::new(full);
+        self.send(&Message::Chunk(Arc::clone(&chunk)));
+        self.sent.push_back(chunk);
+        // More than this many cannot be alive at once; older ones are still held only by a slow motor.
+        if self.sent.len() > CHUNKS_IN_FLIGHT + 2 {
+            self.sent.pop_front();
+        }
     }
 
-    fn send(&mut self, message: Message) {
-        if !self.closed && self.to_stepper.send(message).is_err() {
-            self.closed = true;
+    /// Empty buffers: the oldest sent chunk if every motor is done with it, else new ones.
+    fn reusable_chunk(&mut self) -> Chunk {
+        if let Some(oldest) = self.sent.front_mut()
+            && let Some(chunk) = Arc::get_mut(oldest)
+        {
+            let mut reused = std::mem::take(chunk);
+            reused.toolhead.clear();
+            reused.extruder.clear();
+            self.sent.pop_front();
+            return reused;
+        }
+        Chunk {
+            toolhead: Vec::with_capacity(CHUNK_PIECES),
+            extruder: Vec::with_capacity(CHUNK_PIECES),
+        }
+    }
+
+    fn send(&mut self, message: &Message) {
+        if self.closed {
+            return;
+        }
+        for to_motor in &self.to_motors {
+            if to_motor.send(message.clone()).is_err() {
+                self.closed = true;
+            }
         }
     }
 }
@@ -211,8 +228,8 @@ impl Drop for ChunkSender {
 impl MoveSink for ChunkSender {
     fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
         let buffer = match queue {
-            Queue::Toolhead => &mut self.toolhead,
-            Queue::Extruder => &mut self.extruder,
+            Queue::Toolhead => &mut self.buffer.toolhead,
+            Queue::Extruder => &mut self.buffer.extruder,
         };
         buffer.extend(mv.pieces());
         if buffer.len() >= CHUNK_PIECES {
@@ -222,17 +239,99 @@ impl MoveSink for ChunkSender {
 
     fn set_position(&mut self, xyz: Vec3, e: f64) {
         self.send_buffered();
-        self.send(Message::SetPosition { xyz, e });
+        self.send(&Message::SetPosition { xyz, e });
+    }
+}
+
+/// Which motor a stepping thread drives.
+#[derive(Debug, Clone, Copy)]
+enum Slot {
+    /// Toolhead motor number `n` of the kinematics.
+    Toolhead(usize),
+    Extruder,
+}
+
+/// One motor's stepping thread: its stepper (from the first declared position on), its sink and totals.
+struct MotorThread<'k, S> {
+    kin: &'k dyn Kinematics,
+    slot: Slot,
+    extruder: Option<ExtruderSpec>,
+    config: StepGenConfig,
+    stepper: Option<MotorStepper>,
+    sink: S,
+    filtered_pairs: u64,
+}
+
+impl<S: StepSink> MotorThread<'_, S> {
+    /// Step through every message until the planner is done (or stops early), then release the held-back
+    /// step. Returns the sink and the count of filtered step pairs.
+    fn run(
+        mut self,
+        messages: Receiver<Message>,
+        cancelled: fn() -> bool,
+    ) -> Result<(S, u64), StepError> {
+        for message in messages {
+            if cancelled() {
+                return Err(StepError::Cancelled);
+            }
+            match message {
+                Message::Chunk(chunk) => self.step_chunk(&chunk)?,
+                Message::SetPosition { xyz, e } => self.restart(xyz, e)?,
+            }
+        }
+        self.finish_stepper();
+        Ok((self.sink, self.filtered_pairs))
+    }
+
+    fn step_chunk(&mut self, chunk: &Chunk) -> Result<(), StepError> {
+        let pieces = match self.slot {
+            Slot::Toolhead(_) => &chunk.toolhead,
+            Slot::Extruder => &chunk.extruder,
+        };
+        match self.stepper.as_mut() {
+            Some(stepper) => pieces
+                .iter()
+                .try_for_each(|piece| stepper.process(piece, self.kin, &mut self.sink)),
+            None if pieces.is_empty() => Ok(()),
+            None => Err(StepError::NoStartPose),
+        }
+    }
+
+    /// A declared position: finish the running stepper and start afresh at the new pose, as
+    /// [`StepPipeline`] does for all motors at once.
+    fn restart(&mut self, xyz: Vec3, e: f64) -> Result<(), StepError> {
+        self.finish_stepper();
+        let stepper = match self.slot {
+            Slot::Toolhead(index) => {
+                let start_motors = start_motor_positions(self.kin, xyz)?;
+                toolhead_motor(self.kin, index, &start_motors, self.config)?
+            }
+            Slot::Extruder => match self.extruder.clone() {
+                Some(spec) => extruder_motor(spec, e, self.config)?,
+                None => return Err(StepError::Config("no extruder to restart".into())),
+            },
+        };
+        self.stepper = Some(stepper);
+        Ok(())
+    }
+
+    fn finish_stepper(&mut self) {
+        if let Some(mut stepper) = self.stepper.take() {
+            stepper.finish(&mut self.sink);
+            self.filtered_pairs += stepper.filtered_pairs();
+        }
     }
 }
 
 /// Run `produce` (a planner writing into the given [`MoveSink`]; it must drop the sink before it returns, or
-/// the stepping thread waits for more) on this thread while the motors step on
-/// another, chunk by chunk: planning and stepping overlap. Returns what `produce` returned, the sinks and each
-/// motor's count of filtered step pairs. The output is the same as [`StepPipeline`]'s.
+/// the motors wait for more) on this thread while every motor steps on a thread of its own, chunk by chunk:
+/// planning and the motors overlap, and no motor waits for another (there is no barrier per chunk, so the
+/// operating system keeps the cores busy with whichever threads have work). Returns what `produce` returned,
+/// the sinks and each motor's count of filtered step pairs. The output is the same as [`StepPipeline`]'s;
+/// when motors fail, the error of the first in sink order is reported.
 ///
-/// `cancelled` is polled between chunks: when it turns true, the stepping thread drops the work still queued
-/// and the call fails with [`StepError::Cancelled`] (e.g. on Ctrl-C, so partial output is discarded quickly).
+/// `cancelled` is polled between chunks: when it turns true, the motors drop the work still queued and the
+/// call fails with [`StepError::Cancelled`] (e.g. on Ctrl-C, so partial output is discarded quickly).
 pub fn run_in_parallel<S, R, F>(
     kin: &dyn Kinematics,
     extruder: Option<ExtruderSpec>,
@@ -245,48 +344,67 @@ where
     S: StepSink + Send,
     F: FnOnce(ChunkSender) -> R,
 {
-    let (to_stepper, from_planner) = sync_channel::<Message>(CHUNKS_IN_FLIGHT);
-    let (recycle, recycled) = sync_channel::<(Vec<Piece>, Vec<Piece>)>(CHUNKS_IN_FLIGHT + 2);
+    let toolhead_motors = kin.motors().len();
+    let slots: Vec<Slot> = (0..toolhead_motors)
+        .map(Slot::Toolhead)
+        .chain(extruder.is_some().then_some(Slot::Extruder))
+        .collect();
+    if sinks.len() != slots.len() {
+        return Err(StepError::Config(format!(
+            "{} sinks for {} motors",
+            sinks.len(),
+            slots.len()
+        )));
+    }
     std::thread::scope(|scope| {
-        let stepper = scope.spawn(move || {
-            let mut pipeline = StepPipeline::new(kin, extruder, config, sinks);
-            for message in from_planner {
-                if cancelled() {
-                    pipeline.error = Some(StepError::Cancelled);
-                    break;
-                }
-                match message {
-                    Message::Chunk {
-                        mut toolhead,
-                        mut extruder,
-                    } => {
-                        pipeline.run_pieces(&toolhead, &extruder);
-                        toolhead.clear();
-                        extruder.clear();
-                        let _ = recycle.try_send((toolhead, extruder));
-                    }
-                    Message::SetPosition { xyz, e } => {
-                        MoveSink::set_position(&mut pipeline, xyz, e)
-                    }
-                }
-                if pipeline.error.is_some() {
-                    break;
-                }
-            }
-            pipeline.finish()
-        });
+        let mut to_motors = Vec::with_capacity(slots.len());
+        let mut threads = Vec::with_capacity(slots.len());
+        for (slot, sink) in slots.into_iter().zip(sinks) {
+            let (to_motor, messages) = sync_channel::<Message>(CHUNKS_IN_FLIGHT);
+            to_motors.push(to_motor);
+            let motor = MotorThread {
+                kin,
+                slot,
+                extruder: extruder.clone(),
+                config,
+                stepper: None,
+                sink,
+                filtered_pairs: 0,
+            };
+            threads.push(scope.spawn(move || motor.run(messages, cancelled)));
+        }
         let sender = ChunkSender {
-            to_stepper,
-            recycled,
-            toolhead: Vec::with_capacity(CHUNK_PIECES),
-            extruder: Vec::with_capacity(CHUNK_PIECES),
+            to_motors,
+            sent: VecDeque::with_capacity(CHUNKS_IN_FLIGHT + 3),
+            buffer: Chunk {
+                toolhead: Vec::with_capacity(CHUNK_PIECES),
+                extruder: Vec::with_capacity(CHUNK_PIECES),
+            },
             closed: false,
         };
-        // `produce` owns the sender; when it drops it, the last chunk goes over and the channel closes.
+        // `produce` owns the sender; when it drops it, the last chunk goes over and the channels close.
         let produced = produce(sender);
-        let (sinks, filtered) = stepper
-            .join()
-            .map_err(|_| StepError::Config("the stepping thread panicked".into()))??;
-        Ok((produced, sinks, filtered))
+        let mut sinks = Vec::with_capacity(threads.len());
+        let mut filtered = Vec::with_capacity(threads.len());
+        let mut first_error = None;
+        for thread in threads {
+            match thread.join() {
+                Ok(Ok((sink, pairs))) => {
+                    sinks.push(sink);
+                    filtered.push(pairs);
+                }
+                Ok(Err(e)) => {
+                    first_error.get_or_insert(e);
+                }
+                Err(_) => {
+                    first_error
+                        .get_or_insert(StepError::Config("a stepping thread panicked".into()));
+                }
+            }
+        }
+        match first_error {
+            Some(e) => Err(e),
+            None => Ok((produced, sinks, filtered)),
+        }
     })
 }

@@ -94,9 +94,10 @@ impl StepStats {
     /// The peak is the most steps in a window (clock − 1 ms, clock] ending at any step. A window ending at a
     /// step holds at most one step more than the window ending at the step before, so the peak grows by one
     /// exactly when the step `peak` places back is still inside the new window: one comparison per step,
-    /// whatever the step rate. `clocks` follow at least one earlier step, so `peak ≤ index` throughout.
-    fn update_peak(&mut self, clocks: &[u64]) {
-        if self.peak_unchanged_by(clocks) {
+    /// whatever the step rate. `clocks` follow at least one earlier step, so `peak ≤ index` throughout;
+    /// `run_min_interval` is the smallest gap in `clocks` (from the step before them on).
+    fn update_peak(&mut self, clocks: &[u64], run_min_interval: u64) {
+        if self.peak_unchanged_by(clocks, run_min_interval) {
             self.remember_tail(clocks);
             return;
         }
@@ -126,8 +127,9 @@ impl StepStats {
 
     /// Whether no step of `clocks` has its step `peak` places back inside its window (the common case: the
     /// peak is set by the fastest stretch so far). Two branch-free passes: the steps whose step `peak` back
-    /// is in the ring, then those whose step `peak` back is in `clocks` itself.
-    fn peak_unchanged_by(&self, clocks: &[u64]) -> bool {
+    /// is in the ring, then those whose step `peak` back is in `clocks` itself. The second is skipped when
+    /// `peak` gaps of the run's smallest size already span the window.
+    fn peak_unchanged_by(&self, clocks: &[u64], run_min_interval: u64) -> bool {
         let peak = self.peak_in_window;
         let index = self.steps as usize;
         let mask = self.recent.len() - 1;
@@ -138,13 +140,15 @@ impl StepStats {
             .fold(true, |ok, (i, &clock)| {
                 ok & (self.recent[(index + i - peak) & mask] + self.window_ticks <= clock)
             });
-        let within = clocks
-            .iter()
-            .skip(peak)
-            .zip(clocks)
-            .fold(true, |ok, (&clock, &back)| {
-                ok & (back + self.window_ticks <= clock)
-            });
+        let spread_out = run_min_interval.saturating_mul(peak as u64) >= self.window_ticks;
+        let within = spread_out
+            || clocks
+                .iter()
+                .skip(peak)
+                .zip(clocks)
+                .fold(true, |ok, (&clock, &back)| {
+                    ok & (back + self.window_ticks <= clock)
+                });
         from_ring & within
     }
 
@@ -185,13 +189,13 @@ impl StepSink for StepStats {
             return;
         };
         let mut previous = self.last_clock;
-        let mut min_interval = self.min_interval;
+        let mut run_min_interval = u64::MAX;
         for &clock in rest {
-            min_interval = min_interval.min(clock.saturating_sub(previous));
+            run_min_interval = run_min_interval.min(clock.saturating_sub(previous));
             previous = clock;
         }
-        self.min_interval = min_interval;
-        self.update_peak(rest);
+        self.min_interval = self.min_interval.min(run_min_interval);
+        self.update_peak(rest, run_min_interval);
         self.last_clock = last;
         self.steps += rest.len() as u64;
         let count = clocks.len() as i64;
@@ -288,6 +292,35 @@ mod tests {
             one_by_one.summary(16e6, 0).peak_rate_1ms,
             brute_peak(&clocks, 16_000) as f64 * 1e3
         );
+    }
+
+    proptest::proptest! {
+        /// Stretches of steady gaps (bursts of shared ticks, rates near the peak, slow steps) handed over in
+        /// any run lengths give the brute-force peak and smallest gap.
+        #[test]
+        fn random_streams_match_brute_force(
+            stretches in proptest::collection::vec(
+                (proptest::prop_oneof![0u64..3, 900u64..1400, 1000u64..40_000], 1usize..60),
+                1..12,
+            ),
+            run in 1usize..80,
+        ) {
+            let gaps: Vec<u64> = stretches
+                .iter()
+                .flat_map(|&(gap, count)| std::iter::repeat_n(gap, count))
+                .collect();
+            let clocks: Vec<u64> = gaps.iter().scan(100u64, |c, g| { *c += g; Some(*c) }).collect();
+            let mut stats = StepStats::new(16e6);
+            for chunk in clocks.chunks(run) {
+                stats.steps(chunk, true);
+            }
+            let summary = stats.summary(16e6, 0);
+            proptest::prop_assert_eq!(summary.peak_rate_1ms, brute_peak(&clocks, 16_000) as f64 * 1e3);
+            proptest::prop_assert_eq!(
+                summary.min_interval_ticks,
+                gaps.get(1..).and_then(|later| later.iter().min().copied())
+            );
+        }
     }
 
     #[test]

@@ -368,3 +368,135 @@ fn pipeline_restarts_motors_at_a_declared_position() {
     assert!(sinks[0].iter().all(|s| s.dir));
     assert_eq!(sinks[0][80].clock, clock(2.0 + 0.000625));
 }
+
+/// A star of cruise moves through and near the polar centre, each followed by extrusion: more pieces than
+/// one chunk holds, with a declared position in the middle.
+fn star_of_moves() -> Vec<(Queue, TrapezoidMove)> {
+    let mut moves = Vec::new();
+    let mut print_time = 1.0;
+    let mut at = [30.0, 0.0, 0.0];
+    for i in 0..12_000 {
+        let angle = i as f64 * 2.399963;
+        // Targets alternate between the rim and points 0.05–0.85 mm from the centre.
+        let radius = if i % 2 == 0 {
+            30.0
+        } else {
+            0.05 + (i % 9) as f64 * 0.1
+        };
+        let target = [radius * angle.cos(), radius * angle.sin(), 0.0];
+        let delta = [target[0] - at[0], target[1] - at[1], 0.0];
+        let length = delta[0].hypot(delta[1]);
+        if length < 1e-6 {
+            continue;
+        }
+        let dir = [delta[0] / length, delta[1] / length, 0.0];
+        let duration = length / 120.0;
+        moves.push((
+            Queue::Toolhead,
+            cruise(print_time, duration, at, dir, 120.0),
+        ));
+        let e = i as f64 * 0.05;
+        moves.push((
+            Queue::Extruder,
+            cruise(
+                print_time,
+                duration,
+                [e, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                0.05 / duration,
+            ),
+        ));
+        print_time += duration;
+        at = target;
+    }
+    moves
+}
+
+#[test]
+fn threaded_pipeline_gives_the_sequential_pipelines_steps() {
+    use trapq::MoveSink;
+    let kin = machines::polar(std::f64::consts::TAU / 16000.0, 0.0125, 0.0025);
+    let extruder = ExtruderSpec {
+        name: "extruder".into(),
+        step_distance: 0.002,
+        start_position: 0.0,
+    };
+    let moves = star_of_moves();
+    let (first_half, second_half) = moves.split_at(moves.len() / 2);
+    // The second half is declared to start 0.1 mm of filament further on (as after `G92 E`).
+    let restart = match second_half[0] {
+        (Queue::Toolhead, mv) => (mv.start_pos, second_half[1].1.start_pos[0] + 0.1),
+        (Queue::Extruder, mv) => (second_half[1].1.start_pos, mv.start_pos[0] + 0.1),
+    };
+    let feed = |sink: &mut dyn MoveSink| {
+        sink.set_position([30.0, 0.0, 0.0], 0.0);
+        for (queue, mv) in first_half {
+            sink.append(*queue, mv);
+        }
+        sink.set_position(restart.0, restart.1);
+        for (queue, mv) in second_half {
+            sink.append(*queue, mv);
+        }
+    };
+    let mut sequential = stepgen::StepPipeline::new(
+        kin.as_ref(),
+        Some(extruder.clone()),
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 4],
+    );
+    feed(&mut sequential);
+    let (expected, expected_pairs) = sequential.finish().expect("sequential steps");
+    let ((), threaded, pairs) = stepgen::run_in_parallel(
+        kin.as_ref(),
+        Some(extruder),
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 4],
+        || false,
+        |mut sender| feed(&mut sender),
+    )
+    .expect("threaded steps");
+    assert!(
+        expected[0].len() > 100_000,
+        "bed steps {}",
+        expected[0].len()
+    );
+    // Bed, arm and extruder step (Z stays put).
+    assert!([0, 1, 3].iter().all(|&motor| !expected[motor].is_empty()));
+    assert_eq!(threaded, expected);
+    assert_eq!(pairs, expected_pairs);
+}
+
+#[test]
+fn threaded_pipeline_reports_moves_before_a_declared_position() {
+    use trapq::MoveSink;
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let result = stepgen::run_in_parallel(
+        kin.as_ref(),
+        None,
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 3],
+        || false,
+        |mut sender| {
+            sender.append(
+                Queue::Toolhead,
+                &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+            )
+        },
+    );
+    assert!(matches!(result, Err(StepError::NoStartPose)));
+    let cancelled = stepgen::run_in_parallel(
+        kin.as_ref(),
+        None,
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 3],
+        || true,
+        |mut sender| {
+            sender.set_position([0.0; 3], 0.0);
+            sender.append(
+                Queue::Toolhead,
+                &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+            )
+        },
+    );
+    assert!(matches!(cancelled, Err(StepError::Cancelled)));
+}

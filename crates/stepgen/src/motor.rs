@@ -357,10 +357,11 @@ impl MotorStepper {
         self.check_commit(fb, sink);
     }
 
-    /// Every step from the commanded position towards `fb` (up or down), a batch at a time in three tight
-    /// loops: the levels (Klipper's arithmetic on the commanded position), their times, then the filter and
-    /// sink in order. Kept apart, each loop holds its state in registers and the divisions and square roots
-    /// of a batch overlap in the CPU.
+    /// Every step from the commanded position towards `fb` (up or down), a batch at a time: one tight loop
+    /// finds each level (Klipper's arithmetic on the commanded position) and its time, then the filter and
+    /// sink take the batch. The levels form one serial chain of additions and a bed's ray rotation another;
+    /// with both in one loop and in registers the CPU runs the chains side by side, and the divisions and
+    /// square roots of a batch overlap them.
     #[inline]
     fn steps_towards<S: StepSink + ?Sized, I: LevelInverse>(
         &mut self,
@@ -370,25 +371,38 @@ impl MotorStepper {
         inverse: &mut I,
         sink: &mut S,
     ) {
+        // Only the first step can be a reversal (with its margin); after it the direction is `up`, and a
+        // step is due while the next level has not passed `fb`.
+        if !self.wants_step(fb, up) {
+            return;
+        }
+        // Klipper's `(c ± ½step) ± ½step`: adding −½step is the same operation as subtracting ½step.
+        let half = if up { self.half_step } else { -self.half_step };
         let dir = if up { 1.0 } else { -1.0 };
+        let due = |level: f64| if up { fb >= level } else { fb <= level };
+        let mut commanded = self.commanded;
         loop {
+            inverse.start_batch(commanded + half, dir);
             let mut count = 0;
-            while count < STEP_BATCH && self.wants_step(fb, up) {
-                self.batch[count] = if up {
-                    self.up_level()
-                } else {
-                    self.down_level()
-                };
-                self.advance(up);
+            let more = loop {
+                let level = commanded + half;
+                commanded = level + half;
+                self.batch[count] = inverse.next_time(level);
                 count += 1;
-            }
-            let times = &mut self.batch[..count];
-            inverse.times_at_levels(times, dir);
-            self.filter.push_run(times, print_time, up, sink);
-            if count < STEP_BATCH {
-                return;
+                let more = due(commanded + half);
+                if count == STEP_BATCH || !more {
+                    break more;
+                }
+            };
+            self.net += if up { count as i64 } else { -(count as i64) };
+            self.filter
+                .push_run(&self.batch[..count], print_time, up, sink);
+            if !more {
+                break;
             }
         }
+        self.commanded = commanded;
+        self.dir_up = up;
     }
 
     fn linear_span<S: StepSink + ?Sized>(
@@ -470,11 +484,7 @@ impl MotorStepper {
         // Swept angle along a line is below π; its sign is the sign of cross(P, U) times the travel.
         let sweep = ((span.d1 - span.d0) * line.cross).atan2(qa[0] * qb[0] + qa[1] * qb[1]);
         let fb = fa + sweep;
-        let mut inverse = AngleInverse {
-            line: &line,
-            span,
-            step_rotation: self.step_rotation,
-        };
+        let mut inverse = AngleInverse::new(&line, span, self.step_rotation);
         self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
         Ok(())
@@ -532,18 +542,21 @@ fn is_turn_in_place(piece: &Piece, centre: [f64; 2]) -> bool {
 /// Steps handled per batch in [`MotorStepper::steps_towards`].
 const STEP_BATCH: usize = 64;
 
-/// Maps position levels to the times (relative to the piece start) at which the motor reaches them, in
-/// place. `dir` is +1 while levels increase, −1 while they decrease; levels come one step apart, in order.
+/// Maps position levels to the times (relative to the piece start) at which the motor reaches them. A batch
+/// of levels starts at `first` and goes on one step apart in direction `dir` (+1 up, −1 down).
 pub(crate) trait LevelInverse {
-    fn times_at_levels(&mut self, levels: &mut [f64], dir: f64);
+    /// A batch starts at level `first` (called before its first [`Self::next_time`]).
+    #[inline]
+    fn start_batch(&mut self, _first: f64, _dir: f64) {}
+
+    /// The time of `level`, the next level of the batch.
+    fn next_time(&mut self, level: f64) -> f64;
 }
 
 impl<F: FnMut(f64) -> f64> LevelInverse for F {
     #[inline]
-    fn times_at_levels(&mut self, levels: &mut [f64], _dir: f64) {
-        for level in levels {
-            *level = self(*level);
-        }
+    fn next_time(&mut self, level: f64) -> f64 {
+        self(level)
     }
 }
 
@@ -613,46 +626,58 @@ struct AngleInverse<'a> {
     span: &'a Span,
     /// `(cos, sin)` of one step up.
     step_rotation: [f64; 2],
+    /// The rotation by one step in the batch's direction.
+    rotation: [f64; 2],
+    /// `(cos θ, sin θ)` of the next level.
+    ray: [f64; 2],
+    /// The span's speed when it cruises: distance / speed in one division (the clamp in time then equals
+    /// the clamp in distance).
+    cruise_speed: Option<f64>,
+}
+
+impl<'a> AngleInverse<'a> {
+    fn new(line: &'a PlaneLine, span: &'a Span, step_rotation: [f64; 2]) -> Self {
+        AngleInverse {
+            line,
+            span,
+            step_rotation,
+            rotation: step_rotation,
+            ray: [1.0, 0.0],
+            cruise_speed: span.cruise_speed(),
+        }
+    }
 }
 
 impl LevelInverse for AngleInverse<'_> {
     #[inline]
-    fn times_at_levels(&mut self, levels: &mut [f64], dir: f64) {
-        let Some(&first) = levels.first() else {
-            return;
-        };
+    fn start_batch(&mut self, first: f64, dir: f64) {
         // sin is odd and cos even, so the rotation by one step down is exactly the conjugate.
-        let [rc, rs] = [self.step_rotation[0], dir * self.step_rotation[1]];
-        let (mut s, mut c) = first.sin_cos();
+        self.rotation = [self.step_rotation[0], dir * self.step_rotation[1]];
+        let (s, c) = first.sin_cos();
+        self.ray = [c, s];
+    }
+
+    #[inline]
+    fn next_time(&mut self, _level: f64) -> f64 {
+        let [c, s] = self.ray;
+        let [rc, rs] = self.rotation;
         let (p, u) = (self.line.p, self.line.u);
-        let span = *self.span;
         // Where the level's ray meets the line: numerator and denominator of the distance −num/den.
-        let mut next_ray = || {
-            let num = c * p[1] - s * p[0];
-            let den = c * u[1] - s * u[0];
-            [c, s] = [c * rc - s * rs, s * rc + c * rs];
-            (num, den)
-        };
-        if let Some(v) = span.cruise_speed() {
-            // distance / speed in one division (the clamp in time equals the clamp in distance here).
-            for level in levels {
-                let (num, den) = next_ray();
-                *level = if den != 0.0 {
-                    span.clamp_time(-num / (den * v))
+        let num = c * p[1] - s * p[0];
+        let den = c * u[1] - s * u[0];
+        self.ray = [c * rc - s * rs, s * rc + c * rs];
+        let span = self.span;
+        match self.cruise_speed {
+            Some(v) if den != 0.0 => span.clamp_time(-num / (den * v)),
+            Some(_) => span.time_at(span.d0),
+            None => {
+                let (lo, hi) = if span.d0 <= span.d1 {
+                    (span.d0, span.d1)
                 } else {
-                    span.time_at(span.d0)
+                    (span.d1, span.d0)
                 };
-            }
-        } else {
-            let (lo, hi) = if span.d0 <= span.d1 {
-                (span.d0, span.d1)
-            } else {
-                (span.d1, span.d0)
-            };
-            for level in levels {
-                let (num, den) = next_ray();
                 let dist = if den != 0.0 { -num / den } else { span.d0 };
-                *level = span.time_at(clamp_ordered(dist, lo, hi));
+                span.time_at(clamp_ordered(dist, lo, hi))
             }
         }
     }

@@ -351,8 +351,10 @@ impl MotorStepper {
         sink: &mut S,
     ) {
         self.settle(fa, print_time + t_a, sink);
-        if fb != fa {
-            self.steps_towards(fb, fb > fa, print_time, inverse, sink);
+        if fb > fa {
+            self.steps_towards::<true, S, I>(fb, print_time, inverse, sink);
+        } else if fb != fa {
+            self.steps_towards::<false, S, I>(fb, print_time, inverse, sink);
         }
         self.check_commit(fb, sink);
     }
@@ -363,16 +365,16 @@ impl MotorStepper {
     /// with both in one loop and in registers the CPU runs the chains side by side, and the divisions and
     /// square roots of a batch overlap them.
     #[inline]
-    fn steps_towards<S: StepSink + ?Sized, I: LevelInverse>(
+    fn steps_towards<const UP: bool, S: StepSink + ?Sized, I: LevelInverse>(
         &mut self,
         fb: f64,
-        up: bool,
         print_time: f64,
         inverse: &mut I,
         sink: &mut S,
     ) {
         // Only the first step can be a reversal (with its margin); after it the direction is `up`, and a
         // step is due while the next level has not passed `fb`.
+        let up = UP;
         if !self.wants_step(fb, up) {
             return;
         }
@@ -554,7 +556,7 @@ pub(crate) trait LevelInverse {
 }
 
 impl<F: FnMut(f64) -> f64> LevelInverse for F {
-    #[inline]
+    #[inline(always)]
     fn next_time(&mut self, level: f64) -> f64 {
         self(level)
     }
@@ -657,7 +659,7 @@ impl LevelInverse for AngleInverse<'_> {
         self.ray = [c, s];
     }
 
-    #[inline]
+    #[inline(always)]
     fn next_time(&mut self, _level: f64) -> f64 {
         let [c, s] = self.ray;
         let [rc, rs] = self.rotation;

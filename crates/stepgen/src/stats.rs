@@ -18,6 +18,8 @@ pub struct StepStats {
     recent: Vec<u64>,
     /// Most steps in one window (meaningful once `steps > 0`: the first step makes a window of one).
     peak_in_window: usize,
+    /// The last run handed over: its length and smallest gap (from the step before it on).
+    previous_run: (usize, u64),
 }
 
 /// Finished statistics of one motor.
@@ -50,6 +52,7 @@ impl StepStats {
             min_interval: u64::MAX,
             recent: vec![0; 16],
             peak_in_window: 1,
+            previous_run: (0, 0),
         }
     }
 
@@ -126,11 +129,17 @@ impl StepStats {
     }
 
     /// Whether no step of `clocks` has its step `peak` places back inside its window (the common case: the
-    /// peak is set by the fastest stretch so far). Two branch-free passes: the steps whose step `peak` back
-    /// is in the ring, then those whose step `peak` back is in `clocks` itself. The second is skipped when
-    /// `peak` gaps of the run's smallest size already span the window.
+    /// peak is set by the fastest stretch so far). When the previous run held at least `peak` steps, every
+    /// window that ends in `clocks` spans `peak` gaps of this run or that one, so `peak` gaps of the smaller
+    /// of their smallest sizes spanning the window settle it at once. Otherwise two branch-free passes: the
+    /// steps whose step `peak` back is in the ring, then those whose step `peak` back is in `clocks` itself.
     fn peak_unchanged_by(&self, clocks: &[u64], run_min_interval: u64) -> bool {
         let peak = self.peak_in_window;
+        let spans_window = |gap: u64| gap.saturating_mul(peak as u64) >= self.window_ticks;
+        let (previous_len, previous_min_interval) = self.previous_run;
+        if previous_len >= peak && spans_window(run_min_interval.min(previous_min_interval)) {
+            return true;
+        }
         let index = self.steps as usize;
         let mask = self.recent.len() - 1;
         let from_ring = clocks
@@ -140,8 +149,7 @@ impl StepStats {
             .fold(true, |ok, (i, &clock)| {
                 ok & (self.recent[(index + i - peak) & mask] + self.window_ticks <= clock)
             });
-        let spread_out = run_min_interval.saturating_mul(peak as u64) >= self.window_ticks;
-        let within = spread_out
+        let within = spans_window(run_min_interval)
             || clocks
                 .iter()
                 .skip(peak)
@@ -196,6 +204,7 @@ impl StepSink for StepStats {
         }
         self.min_interval = self.min_interval.min(run_min_interval);
         self.update_peak(rest, run_min_interval);
+        self.previous_run = (rest.len(), run_min_interval);
         self.last_clock = last;
         self.steps += rest.len() as u64;
         let count = clocks.len() as i64;

@@ -15,8 +15,9 @@ use crate::generator::{
 use crate::motor::{MotorStepper, StepGenConfig};
 use crate::sink::StepSink;
 
-/// Pieces buffered per queue before the motors run over them.
-const CHUNK_PIECES: usize = 4096;
+/// Pieces buffered per queue before the motors run over them (small enough that the first chunk reaches
+/// the motors early and the last one leaves little work for the slowest motor alone).
+const CHUNK_PIECES: usize = 2048;
 
 /// Streams planned moves into per-motor step sinks.
 #[derive(Debug)]
@@ -157,8 +158,10 @@ enum Message {
     SetPosition { xyz: Vec3, e: f64 },
 }
 
-/// Chunks queued per motor (bounded, so memory stays bounded and the planner waits for the slowest motor).
-const CHUNKS_IN_FLIGHT: usize = 16;
+/// Chunks queued per motor: bounded, so memory stays bounded and the planner waits for the slowest motor.
+/// A short queue keeps the slowest motor (a polar bed) from falling far behind while the planner takes a core:
+/// when planning ends, at most this many chunks are left for that motor alone, with the other core idle.
+const CHUNKS_IN_FLIGHT: usize = 4;
 
 /// The planning side of [`run_in_parallel`]: a [`MoveSink`] that buffers pieces and sends full chunks to
 /// every motor's thread.

@@ -197,32 +197,35 @@ impl MotorStepper {
         self.filter.commit(sink);
     }
 
+    #[inline]
     fn validate(&self, piece: &Piece) -> Result<(), StepError> {
-        // A product with zero is 0 for every finite value and NaN otherwise: one test for all twelve values,
-        // which every motor makes on every piece.
-        let zeros = [
-            piece.print_time,
-            piece.duration,
-            piece.start_v,
-            piece.half_accel,
-        ]
-        .iter()
-        .chain(&piece.start_pos)
-        .chain(&piece.axes_r)
-        .fold(0.0, |acc, v| acc + v * 0.0);
+        // A product with zero is 0 for every finite value and NaN otherwise: one test for all ten values,
+        // which every motor makes on every piece (summed pairwise, so the additions do not wait in a chain).
+        let [x, y, z] = piece.start_pos;
+        let [u, v, w] = piece.axes_r;
+        let zero = |a: f64, b: f64| a * 0.0 + b * 0.0;
+        let zeros = (zero(piece.print_time, piece.duration)
+            + zero(piece.start_v, piece.half_accel))
+            + (zero(x, y) + zero(z, u))
+            + zero(v, w);
         let finite = zeros == 0.0;
-        let reason = if !finite {
-            "non-finite value"
-        } else if piece.duration < -NEGLIGIBLE_DURATION || piece.print_time < 0.0 {
-            "negative time"
-        } else {
+        if finite && piece.duration >= -NEGLIGIBLE_DURATION && piece.print_time >= 0.0 {
             return Ok(());
-        };
-        Err(StepError::InvalidPiece {
+        }
+        Err(self.invalid_piece(piece, finite))
+    }
+
+    #[cold]
+    fn invalid_piece(&self, piece: &Piece, finite: bool) -> StepError {
+        StepError::InvalidPiece {
             motor: self.spec.name.clone(),
             time: piece.print_time,
-            reason,
-        })
+            reason: if finite {
+                "negative time"
+            } else {
+                "non-finite value"
+            },
+        }
     }
 
     /// Emit, at one instant, the steps a position `f` already demands (a jump by rounding between pieces),

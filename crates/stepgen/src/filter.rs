@@ -8,10 +8,14 @@
 
 use crate::sink::StepSink;
 
-/// Clocks handed to the sink at once by [`StepFilter::push_run`].
-const RUN_CAPACITY: usize = 64;
+/// Final steps kept before they go to the sink in one slice.
+const OUT_CAPACITY: usize = 64;
 
 /// Converts solver times to clocks and filters rapid step+dir+step sequences for one motor.
+///
+/// Final steps are collected and handed to the sink in slices of one direction (when the slice is full, when
+/// the direction changes, and on [`StepFilter::flush`]), so a sink is called once per many steps even when
+/// pieces bring one or two steps each.
 #[derive(Debug, Clone)]
 pub struct StepFilter {
     clock_hz: f64,
@@ -20,8 +24,10 @@ pub struct StepFilter {
     pending: Option<(u64, bool)>,
     filtered_pairs: u64,
     last_emitted: u64,
-    /// Clocks of a run on their way to the sink (kept here so that no buffer is zeroed per run).
-    run: [u64; RUN_CAPACITY],
+    /// Final steps not yet handed to the sink (`out[..out_len]`, all in direction `out_dir`).
+    out: [u64; OUT_CAPACITY],
+    out_len: usize,
+    out_dir: bool,
 }
 
 impl StepFilter {
@@ -32,7 +38,9 @@ impl StepFilter {
             pending: None,
             filtered_pairs: 0,
             last_emitted: 0,
-            run: [0; RUN_CAPACITY],
+            out: [0; OUT_CAPACITY],
+            out_len: 0,
+            out_dir: false,
         }
     }
 
@@ -53,8 +61,7 @@ impl StepFilter {
 
     /// Steps at `print_time + t` for each `t` of `times` (non-decreasing), all in direction `dir`: the same
     /// as pushing them one by one. Only the first can meet a reversal; each later one makes the step before
-    /// it final, so the held-back step (when it goes the same way) and all but the last go to the sink as one
-    /// slice, and the last is held back in turn.
+    /// it final, so all but the last become final here, in one pass, and the last is held back in turn.
     #[inline]
     pub fn push_run<S: StepSink + ?Sized>(
         &mut self,
@@ -66,51 +73,67 @@ impl StepFilter {
         let Some(&first) = times.first() else {
             return;
         };
-        let mut count = 0;
-        let mut previous = self.last_emitted;
         let mut body = times;
         if let Some((pending_clock, pending_dir)) = self.pending.take() {
             let first_clock = self.clock_of(print_time + first);
-            if pending_dir != dir
-                && ((first_clock as i64 - pending_clock as i64) as f64) < self.window_ticks
-            {
+            if self.cancels(pending_clock, pending_dir, first_clock, dir) {
                 self.filtered_pairs += 1;
                 body = &times[1..];
-            } else if pending_dir == dir {
-                previous = previous.max(pending_clock);
-                self.run[0] = previous;
-                count = 1;
             } else {
                 self.emit(pending_clock, pending_dir, sink);
-                previous = self.last_emitted;
             }
         }
         let Some((&last, middle)) = body.split_last() else {
             return;
         };
+        if !middle.is_empty() {
+            self.emit_run(middle, print_time, dir, sink);
+        }
+        self.pending = Some((self.clock_of(print_time + last), dir));
+    }
+
+    /// The steps at `print_time + t` for each `t` of `times`, all final, into the outgoing slice.
+    #[inline]
+    fn emit_run<S: StepSink + ?Sized>(
+        &mut self,
+        times: &[f64],
+        print_time: f64,
+        dir: bool,
+        sink: &mut S,
+    ) {
+        if self.out_len > 0 && self.out_dir != dir {
+            self.flush(sink);
+        }
+        self.out_dir = dir;
         let clock_hz = self.clock_hz;
-        for chunk in middle.chunks(RUN_CAPACITY - 1) {
-            for (slot, &t) in self.run[count..].iter_mut().zip(chunk) {
+        let mut previous = self.last_emitted;
+        let mut rest = times;
+        while !rest.is_empty() {
+            if self.out_len == OUT_CAPACITY {
+                self.flush(sink);
+            }
+            let room = OUT_CAPACITY - self.out_len;
+            let (now, later) = rest.split_at(room.min(rest.len()));
+            for (slot, &t) in self.out[self.out_len..].iter_mut().zip(now) {
                 previous = previous.max(clock_at(print_time + t, clock_hz));
                 *slot = previous;
             }
-            count += chunk.len();
-            sink.steps(&self.run[..count], dir);
-            count = 0;
-        }
-        if count > 0 {
-            sink.steps(&self.run[..count], dir);
+            self.out_len += now.len();
+            rest = later;
         }
         self.last_emitted = previous;
-        self.pending = Some((self.clock_of(print_time + last), dir));
+    }
+
+    /// Whether a step at `clock` in direction `dir` removes the pending step with it (a quick reversal).
+    #[inline]
+    fn cancels(&self, pending_clock: u64, pending_dir: bool, clock: u64, dir: bool) -> bool {
+        pending_dir != dir && ((clock as i64 - pending_clock as i64) as f64) < self.window_ticks
     }
 
     #[inline]
     fn push_clock<S: StepSink + ?Sized>(&mut self, clock: u64, dir: bool, sink: &mut S) {
         if let Some((pending_clock, pending_dir)) = self.pending {
-            if pending_dir != dir
-                && ((clock as i64 - pending_clock as i64) as f64) < self.window_ticks
-            {
+            if self.cancels(pending_clock, pending_dir, clock, dir) {
                 self.pending = None;
                 self.filtered_pairs += 1;
                 return;
@@ -124,22 +147,31 @@ impl StepFilter {
     #[inline(always)]
     pub fn commit<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
         if let Some((clock, dir)) = self.pending.take() {
-            self.emit_pending(clock, dir, sink);
+            self.emit(clock, dir, sink);
         }
     }
 
-    #[inline(never)]
-    fn emit_pending<S: StepSink + ?Sized>(&mut self, clock: u64, dir: bool, sink: &mut S) {
-        self.emit(clock, dir, sink);
+    /// Hand the final steps collected so far to the sink (the held-back step stays held back).
+    pub fn flush<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
+        if self.out_len > 0 {
+            sink.steps(&self.out[..self.out_len], self.out_dir);
+            self.out_len = 0;
+        }
     }
 
+    /// One final step into the outgoing slice.
     #[inline]
     fn emit<S: StepSink + ?Sized>(&mut self, clock: u64, dir: bool, sink: &mut S) {
+        if self.out_len == OUT_CAPACITY || (self.out_len > 0 && self.out_dir != dir) {
+            self.flush(sink);
+        }
         // Rounding can put a step one tick before the previous one only if both are within a tick; keep the
         // stream monotonic for consumers.
         let clock = clock.max(self.last_emitted);
         self.last_emitted = clock;
-        sink.step(clock, dir);
+        self.out[self.out_len] = clock;
+        self.out_len += 1;
+        self.out_dir = dir;
     }
 
     /// Number of step pairs removed so far.
@@ -170,7 +202,44 @@ mod tests {
             filter.push(t, dir, &mut out);
         }
         filter.commit(&mut out);
+        filter.flush(&mut out);
         (out, filter.filtered_pairs())
+    }
+
+    /// Klipper's rule written plainly, one step at a time with nothing collected: the reference.
+    #[derive(Default)]
+    struct Reference {
+        pending: Option<(u64, bool)>,
+        last: u64,
+        out: Vec<Step>,
+        pairs: u64,
+    }
+
+    impl Reference {
+        fn push(&mut self, clock: u64, dir: bool) {
+            if let Some((pending_clock, pending_dir)) = self.pending.take() {
+                if pending_dir != dir && ((clock as i64 - pending_clock as i64) as f64) < 12_000.0 {
+                    self.pairs += 1;
+                    return;
+                }
+                self.emit(pending_clock, pending_dir);
+            }
+            self.pending = Some((clock, dir));
+        }
+
+        fn commit(&mut self) {
+            if let Some((clock, dir)) = self.pending.take() {
+                self.emit(clock, dir);
+            }
+        }
+
+        fn emit(&mut self, clock: u64, dir: bool) {
+            self.last = self.last.max(clock);
+            self.out.push(Step {
+                clock: self.last,
+                dir,
+            });
+        }
     }
 
     #[test]
@@ -231,20 +300,21 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// Runs of steps (with quick and slow reversals between them, and commits) give the same stream and
-        /// count of removed pairs as the same steps pushed one at a time.
+        /// Runs of steps (with quick and slow reversals between them, commits and flushes) give the stream and
+        /// count of removed pairs of the plain reference, whether pushed as runs or one at a time.
         #[test]
-        fn runs_match_single_steps(
+        fn runs_match_single_steps_and_the_reference(
             runs in proptest::collection::vec(
-                (1usize..150, proptest::bool::ANY, 1u32..2000, proptest::bool::ANY),
+                (1usize..150, proptest::bool::ANY, 1u32..2000, 0u8..4),
                 1..12,
             )
         ) {
             let mut by_run = StepFilter::new(16e6, 750e-6);
             let mut by_step = StepFilter::new(16e6, 750e-6);
+            let mut reference = Reference::default();
             let (mut out_run, mut out_step) = (Vec::new(), Vec::new());
             let mut print_time = 1.0;
-            for (len, dir, gap_us, commit) in runs {
+            for (len, dir, gap_us, after) in runs {
                 // Steps `gap_us` µs apart, some sharing a tick after rounding.
                 let times: Vec<f64> = (0..len).map(|i| (i / 2) as f64 * gap_us as f64 * 1e-6).collect();
                 for chunk in times.chunks(STEP_BATCH_FOR_TEST) {
@@ -252,17 +322,28 @@ mod tests {
                 }
                 for &t in &times {
                     by_step.push(print_time + t, dir, &mut out_step);
+                    reference.push(by_step.clock_of(print_time + t), dir);
                 }
-                if commit {
+                // After a run: 0 nothing, 1 commit, 2 flush, 3 both.
+                if after & 1 == 1 {
                     by_run.commit(&mut out_run);
                     by_step.commit(&mut out_step);
+                    reference.commit();
+                }
+                if after & 2 == 2 {
+                    by_run.flush(&mut out_run);
                 }
                 print_time += times.last().copied().unwrap_or(0.0) + gap_us as f64 * 0.7e-6;
             }
-            by_run.commit(&mut out_run);
-            by_step.commit(&mut out_step);
-            proptest::prop_assert_eq!(out_run, out_step);
-            proptest::prop_assert_eq!(by_run.filtered_pairs(), by_step.filtered_pairs());
+            for (filter, out) in [(&mut by_run, &mut out_run), (&mut by_step, &mut out_step)] {
+                filter.commit(out);
+                filter.flush(out);
+            }
+            reference.commit();
+            proptest::prop_assert_eq!(&out_run, &reference.out);
+            proptest::prop_assert_eq!(&out_step, &reference.out);
+            proptest::prop_assert_eq!(by_run.filtered_pairs(), reference.pairs);
+            proptest::prop_assert_eq!(by_step.filtered_pairs(), reference.pairs);
         }
     }
 
@@ -277,6 +358,7 @@ mod tests {
         filter.commit(&mut out);
         filter.push(1.0001, false, &mut out);
         filter.commit(&mut out);
+        filter.flush(&mut out);
         assert_eq!(out.len(), 2);
         assert_eq!(filter.filtered_pairs(), 0);
     }

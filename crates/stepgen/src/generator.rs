@@ -67,7 +67,8 @@ impl<'k> StepGenerator<'k> {
     }
 
     /// Process one chunk of pieces: `toolhead` and `extruder` pieces, each in print-time order and
-    /// continuing the previous chunk. `sinks` has one sink per motor. Motors run in parallel.
+    /// continuing the previous chunk. `sinks` has one sink per motor and holds every final step of the chunk
+    /// when this returns (only each motor's held-back step waits). Motors run in parallel.
     pub fn run_chunk<S: StepSink + Send>(
         &mut self,
         toolhead: &[Piece],
@@ -87,7 +88,10 @@ impl<'k> StepGenerator<'k> {
                 };
                 pieces
                     .iter()
-                    .try_for_each(|piece| motor.process(piece, kin, sink))
+                    .try_for_each(|piece| motor.process(piece, kin, sink))?;
+                // The chunk's final steps reach the sinks now (a simulator reads them chunk by chunk).
+                motor.flush(sink);
+                Ok(())
             })
             .collect();
         // Report the first motor's error, deterministically.

@@ -192,9 +192,16 @@ impl MotorStepper {
         }
     }
 
-    /// End of input: the held-back step is final.
+    /// End of input: the held-back step is final, and every final step goes to the sink.
     pub fn finish<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
         self.filter.commit(sink);
+        self.filter.flush(sink);
+    }
+
+    /// Hand the final steps generated so far to the sink (they are otherwise collected into longer slices;
+    /// the held-back step stays held back).
+    pub fn flush<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
+        self.filter.flush(sink);
     }
 
     #[inline]

@@ -58,6 +58,7 @@ impl Plan {
 impl Move {
     /// A move from `start` to `end` at the requested `speed` (mm/s) under the current limits.
     /// Returns `None` for a move that goes nowhere.
+    #[inline]
     pub fn new(
         start: [f64; 4],
         end: [f64; 4],

@@ -15,7 +15,7 @@ use crate::command::{
 };
 use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
 use crate::lexer::{CommandWord, Line, Word, span_of};
-use crate::meta::{CommentMeta, comment_meta};
+use crate::meta::{CommentMeta, comment_meta, may_start_meta};
 use crate::number::parse_number;
 use crate::reader::Reader;
 
@@ -463,42 +463,67 @@ impl Interpreter {
         (f > 0.0 && speed.is_finite() && speed > 0.0).then_some(speed)
     }
 
-    /// The fast path for the commonest line, a plain `G0`/`G1` with blank-separated X Y Z E F words
-    /// (each once, each with a number) and nothing else: lexed and interpreted in one pass over the
-    /// bytes, without storing tokens. Any other line, and a move that would fail or warn, gives
-    /// `None` and goes through the lexer and [`Self::interpret`], which give the same command for
-    /// the lines this takes (checked by the `fast_path_*` tests).
-    fn plain_move_line(&mut self, text: &[u8], line: u64) -> Option<Spanned<Command>> {
+    /// The fast paths for the commonest lines, read in one pass over the bytes without storing
+    /// tokens: a plain move ([`Self::plain_move_line`]), and lines that give no command (blank, or
+    /// only a comment without slicer metadata). `bytes` run from the line's start on (past its
+    /// end). Gives the line's command (if any) and its length (up to its `\n` or `\r`), or `None`
+    /// for the general path.
+    fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<(Option<Spanned<Command>>, usize)> {
+        let start = skip_blanks(bytes, 0);
+        match *bytes.get(start)? {
+            b'\n' | b'\r' => Some((None, start)),
+            b';' => quiet_comment_end(bytes, start).map(|end| (None, end)),
+            _ => {
+                let (command, len) = self.plain_move_line(bytes, start, line)?;
+                Some((Some(command), len))
+            }
+        }
+    }
+
+    /// A plain `G0`/`G1` (its command word at `start`) with blank-separated X Y Z E F words (each
+    /// once, each with a number) and nothing else. Any other line, a line
+    /// whose end is not in `bytes`, and a move that would fail or warn, give `None` and go through
+    /// the lexer and [`Self::interpret`], which give the same command for the lines this takes
+    /// (checked by the `fast_path_*` tests).
+    fn plain_move_line(
+        &mut self,
+        bytes: &[u8],
+        start: usize,
+        line: u64,
+    ) -> Option<(Spanned<Command>, usize)> {
         if self.pending_layer.is_some() || !self.queue.is_empty() {
             return None;
         }
-        let start = skip_blanks(text, 0);
-        let rapid = match text.get(start..start + 2)? {
+        let rapid = match bytes.get(start..start + 2)? {
             [b'G' | b'g', b'0'] => true,
             [b'G' | b'g', b'1'] => false,
             _ => return None,
         };
         let command_end = start + 2;
-        let (values, params_end) = plain_move_words(text, command_end)?;
+        let (words, params_end, line_len) = plain_move_words(bytes, command_end)?;
         let (factor, absolute) = self.axis_modes();
         let mut target = self.last;
         let mut named = [false; 4];
         for axis in 0..4 {
-            if let Some(value) = values[axis] {
+            if words.has(axis) {
                 named[axis] = true;
+                let value = words.values[axis];
                 target[axis] = self.axis_position(axis, value, target[axis], &factor, &absolute);
-                if !target[axis].is_finite() {
-                    return None;
-                }
             }
         }
-        let speed = match values[4] {
-            None => self.speed,
-            Some(f) => self.speed_from_f(f)?,
+        // One test for the four axes: the sum is finite only if each is (a finite sum too large
+        // to add up merely sends the line to the general path).
+        if !(target[0] + target[1] + target[2] + target[3]).is_finite() {
+            return None;
+        }
+        let speed = if words.has(FEED_SLOT) {
+            self.speed_from_f(words.values[FEED_SLOT])?
+        } else {
+            self.speed
         };
         self.last = target;
         self.speed = speed;
-        Some(Spanned {
+        let command = Spanned {
             span: span_of(line, start, command_end.max(params_end)),
             value: Command::Move(Move {
                 target,
@@ -506,7 +531,8 @@ impl Interpreter {
                 feed: speed,
                 rapid,
             }),
-        })
+        };
+        Some((command, line_len))
     }
 
     /// G2/G3 in the XY plane, absolute mode only (as Klipper's `gcode_arcs`).
@@ -739,38 +765,82 @@ fn skip_blanks(text: &[u8], pos: usize) -> usize {
     pos + blanks
 }
 
-/// The X Y Z E F values of a plain move's words (`None` where absent) and the end of the last
-/// word, from `pos` just after the command word; `None` unless the rest of the line is only such
-/// words, each preceded by blanks, each letter once, each with a number the lexer would accept.
-fn plain_move_words(text: &[u8], mut pos: usize) -> Option<([Option<f64>; 5], usize)> {
-    let mut values = [None; 5];
-    let mut end = pos;
+/// The line end of a comment-only line (its `;` at `semicolon`) that gives no command: its text
+/// holds no slicer metadata and is UTF-8 (else the general path warns). `None` for any other line,
+/// and when the line end is not in `bytes`.
+fn quiet_comment_end(bytes: &[u8], semicolon: usize) -> Option<usize> {
+    let first = skip_blanks(bytes, semicolon + 1);
+    if may_start_meta(*bytes.get(first)?) {
+        return None;
+    }
+    let end = semicolon + memchr::memchr2(b'\n', b'\r', &bytes[semicolon..])?;
+    let text = &bytes[semicolon + 1..end];
+    (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some(end)
+}
+
+/// The X Y Z E F values of a plain move, by slot (see [`PLAIN_SLOTS`]).
+#[derive(Default)]
+struct PlainWords {
+    values: [f64; 5],
+    /// Bit `slot` set when the word was given.
+    given: u8,
+}
+
+impl PlainWords {
+    fn has(&self, slot: usize) -> bool {
+        self.given & (1 << slot) != 0
+    }
+}
+
+/// Slot of F in [`PlainWords`] (X Y Z E are 0 to 3, as the axes).
+const FEED_SLOT: usize = 4;
+/// Not a plain-move letter.
+const NO_SLOT: u8 = u8::MAX;
+
+/// Slot of each byte that is a plain-move letter (X Y Z E F in either case), else [`NO_SLOT`]: one
+/// look-up per word.
+const PLAIN_SLOTS: [u8; 256] = {
+    let mut table = [NO_SLOT; 256];
+    let letters = *b"XYZEF";
+    let mut slot = 0;
+    while slot < letters.len() {
+        table[letters[slot] as usize] = slot as u8;
+        table[letters[slot].to_ascii_lowercase() as usize] = slot as u8;
+        slot += 1;
+    }
+    table
+};
+
+/// The words of a plain move, the end of its last word and the end of the line (where its `\n` or
+/// `\r` is), from `pos` just after the command word; `None` unless the rest of the line is only X
+/// Y Z E F words, each preceded by blanks, each letter once, each with a number the lexer would
+/// accept.
+fn plain_move_words(bytes: &[u8], mut pos: usize) -> Option<(PlainWords, usize, usize)> {
+    let mut words = PlainWords::default();
+    let mut params_end = pos;
     loop {
-        let next = skip_blanks(text, pos);
-        let Some(&letter) = text.get(next) else {
-            return Some((values, end));
-        };
-        if next == pos {
-            return None;
-        }
-        let slot = match letter.to_ascii_uppercase() {
-            b'X' => 0,
-            b'Y' => 1,
-            b'Z' => 2,
-            b'E' => 3,
-            b'F' => 4,
+        // Blanks or the line end must follow the command and each word.
+        match *bytes.get(pos)? {
+            b' ' | b'\t' => pos += 1,
+            b'\n' | b'\r' => return Some((words, params_end, pos)),
             _ => return None,
-        };
-        if values[slot].is_some() {
+        }
+        while let Some(b' ' | b'\t') = bytes.get(pos) {
+            pos += 1;
+        }
+        let letter = *bytes.get(pos)?;
+        let slot = PLAIN_SLOTS[usize::from(letter)];
+        if slot == NO_SLOT {
+            return matches!(letter, b'\n' | b'\r').then_some((words, params_end, pos));
+        }
+        if words.given & (1 << slot) != 0 {
             return None;
         }
-        let (value, after) = parse_number(text, next + 1).ok()?;
-        if !matches!(text.get(after), None | Some(b' ' | b'\t')) {
-            return None;
-        }
-        values[slot] = Some(value);
+        let (value, after) = parse_number(bytes, pos + 1).ok()?;
+        *words.values.get_mut(usize::from(slot))? = value;
+        words.given |= 1 << slot;
         pos = after;
-        end = after;
+        params_end = after;
     }
 }
 
@@ -901,8 +971,9 @@ pub struct Commands<R> {
     interpreter: Interpreter,
     source: Arc<str>,
     finished: bool,
-    /// Plain moves take [`Interpreter::plain_move_line`] (off only in tests, to compare).
-    fast_moves: bool,
+    /// Plain moves and lines without commands take [`Interpreter::fast_line`] (off only in tests,
+    /// to compare).
+    fast_lines: bool,
 }
 
 impl<R: BufRead> Commands<R> {
@@ -913,7 +984,7 @@ impl<R: BufRead> Commands<R> {
             interpreter: Interpreter::new(options),
             source,
             finished: false,
-            fast_moves: true,
+            fast_lines: true,
         }
     }
 
@@ -931,13 +1002,16 @@ impl<R: BufRead> Commands<R> {
             if self.finished {
                 return None;
             }
-            let interpreter = &mut self.interpreter;
-            if self.fast_moves
-                && let Some(command) = self
+            if self.fast_lines {
+                let interpreter = &mut self.interpreter;
+                match self
                     .reader
-                    .take_line_with(|text, number| interpreter.plain_move_line(text, number))
-            {
-                return Some(Ok(command));
+                    .take_line_with(|bytes, number| interpreter.fast_line(bytes, number))
+                {
+                    Some(Some(command)) => return Some(Ok(command)),
+                    Some(None) => continue,
+                    None => {}
+                }
             }
             match self.reader.next_line() {
                 None => {
@@ -991,6 +1065,7 @@ impl<R: BufRead> Iterator for Commands<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reader::ReaderOptions;
 
     fn run(text: &str) -> (Vec<Command>, Interpreter) {
         let mut commands = Commands::from_reader(text.as_bytes(), "t");
@@ -1222,9 +1297,9 @@ mod tests {
 
     /// Everything a stream gives, as text (`{:?}` tells `-0.0` from `0.0`): each command or error,
     /// the warnings, and the final state.
-    fn stream(text: &[u8], fast_moves: bool) -> String {
+    fn stream(text: &[u8], fast_lines: bool) -> String {
         let mut commands = Commands::from_reader(text, "t");
-        commands.fast_moves = fast_moves;
+        commands.fast_lines = fast_lines;
         let out: Vec<_> = commands.by_ref().collect();
         let warnings = commands.take_warnings();
         let state = commands.interpreter();
@@ -1253,7 +1328,8 @@ mod tests {
                     proptest::sample::select(vec![
                         "G1", "G0", "g1", "G01", "G1.5", "G2", "G4", "M83", "M82", "G91", "G90",
                         "G92 E0", "G92 X1", "M221 S150", "M220 S50", "G20", "G21", "N5 G1", " G1",
-                        ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28",
+                        ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28", "; note", ";TIME_ELAPSED:5",
+                        ";TYPE:Perimeter", "  ; x", ";", "   ", "\t;c", "; caf\u{e9}", "; Z:1",
                     ]),
                     proptest::collection::vec(
                         proptest::sample::select(vec![
@@ -1281,6 +1357,23 @@ mod tests {
         }
     }
 
+    #[test]
+    fn fast_path_keeps_comment_warnings_and_the_line_limit() {
+        let text =
+            b"G1 X1\n; caf\xe9\n  ;\xff\r\n;ok\n\nG1 X2 Y3 E4 F5\n; a longer comment line\nG1 X3\n";
+        assert_eq!(stream(text, true), stream(text, false));
+        assert!(stream(text, true).contains("LossyComment"));
+        for max_line_len in 0..24 {
+            let run = |fast_lines| {
+                let reader = Reader::with_options(&text[..], "t", ReaderOptions { max_line_len });
+                let mut commands = Commands::new(reader, InterpreterOptions::default());
+                commands.fast_lines = fast_lines;
+                format!("{:?}", commands.collect::<Vec<_>>())
+            };
+            assert_eq!(run(true), run(false), "max_line_len {max_line_len}");
+        }
+    }
+
     /// Input that fails after its text.
     struct FailingAfter<'a>(&'a [u8]);
 
@@ -1300,10 +1393,10 @@ mod tests {
     fn fast_path_keeps_io_errors() {
         let text = b"G1 X1\r\nG1 X2\rG1 X3\nG1 X4";
         for capacity in [4, 8, 64] {
-            let run = |fast_moves| {
+            let run = |fast_lines| {
                 let input = std::io::BufReader::with_capacity(capacity, FailingAfter(text));
                 let mut commands = Commands::from_reader(input, "t");
-                commands.fast_moves = fast_moves;
+                commands.fast_lines = fast_lines;
                 format!("{:?}", commands.collect::<Vec<_>>())
             };
             let fast = run(true);

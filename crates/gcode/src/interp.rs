@@ -480,8 +480,8 @@ impl Interpreter {
         }
     }
 
-    /// A plain `G0`/`G1` (its command word at `start`) with blank-separated X Y Z E F words (each
-    /// once, each with a number) and nothing else. Any other line, a line
+    /// A plain `G0`/`G1`/`G2`/`G3` (its command word at `start`): blank-separated X Y Z E F words
+    /// (arcs also I J), each once, each with a number, and nothing else. Any other line, a line
     /// whose end is not in `bytes`, and a move that would fail or warn, give `None` and go through
     /// the lexer and [`Self::interpret`], which give the same command for the lines this takes
     /// (checked by the `fast_path_*` tests).
@@ -497,42 +497,106 @@ impl Interpreter {
         let rapid = match bytes.get(start..start + 2)? {
             [b'G' | b'g', b'0'] => true,
             [b'G' | b'g', b'1'] => false,
+            [b'G' | b'g', b'2'] => return self.plain_arc_line(bytes, start, line, true),
+            [b'G' | b'g', b'3'] => return self.plain_arc_line(bytes, start, line, false),
             _ => return None,
         };
         let command_end = start + 2;
-        let (words, params_end, line_len) = plain_move_words(bytes, command_end)?;
+        let (words, params_end, line_len) = plain_move_words::<LINEAR_SLOTS>(bytes, command_end)?;
+        let command = Spanned {
+            span: span_of(line, start, command_end.max(params_end)),
+            value: Command::Move(self.plain_linear_move(&words, rapid)?),
+        };
+        Some((command, line_len))
+    }
+
+    /// [`Self::plain_move_line`] for `G2`/`G3`, kept out of line: arcs are rarer, and the
+    /// straight moves' loop stays as tight as without them.
+    #[inline(never)]
+    fn plain_arc_line(
+        &mut self,
+        bytes: &[u8],
+        start: usize,
+        line: u64,
+        clockwise: bool,
+    ) -> Option<(Spanned<Command>, usize)> {
+        let command_end = start + 2;
+        let (words, params_end, line_len) = plain_move_words::<ARC_SLOTS>(bytes, command_end)?;
+        let command = Spanned {
+            span: span_of(line, start, command_end.max(params_end)),
+            value: Command::Arc(Box::new(self.plain_arc(&words, clockwise)?)),
+        };
+        Some((command, line_len))
+    }
+
+    /// [`Self::linear_move`] for the words of a plain line; `None` where that would fail.
+    fn plain_linear_move(&mut self, words: &MoveWords, rapid: bool) -> Option<Move> {
+        let (target, named) = self.plain_target(words)?;
+        let speed = self.plain_speed(words)?;
+        self.last = target;
+        self.speed = speed;
+        Some(Move {
+            target,
+            named,
+            feed: speed,
+            rapid,
+        })
+    }
+
+    /// [`Self::arc`] for the words of a plain line with I or J; `None` where that would fail.
+    fn plain_arc(&mut self, words: &MoveWords, clockwise: bool) -> Option<ArcMove> {
+        if !self.absolute_coord || self.plane != Plane::Xy {
+            return None;
+        }
+        let (target, _) = self.plain_target(words)?;
+        let speed = self.plain_speed(words)?;
+        let i = words.get(I_SLOT).map(|v| v * self.unit);
+        let j = words.get(J_SLOT).map(|v| v * self.unit);
+        if i.is_none() && j.is_none() {
+            return None;
+        }
+        let offset = [i.unwrap_or(0.0), j.unwrap_or(0.0)];
+        if offset[0].hypot(offset[1]) == 0.0 {
+            return None;
+        }
+        let centre = checked_centre(&self.last, &target, offset).ok()?;
+        let e_written = words.get(E_SLOT).map(|v| v * self.unit);
+        Some(self.commit_arc(ArcEnds {
+            target,
+            centre,
+            offset,
+            clockwise,
+            turns: 0,
+            speed,
+            e_written,
+        }))
+    }
+
+    /// [`Self::target`] for the words of a plain line (not committed); `None` where that would
+    /// fail.
+    fn plain_target(&self, words: &MoveWords) -> Option<(Position, [bool; 4])> {
         let (factor, absolute) = self.axis_modes();
         let mut target = self.last;
         let mut named = [false; 4];
         for axis in 0..4 {
-            if words.has(axis) {
+            if let Some(value) = words.get(axis) {
                 named[axis] = true;
-                let value = words.values[axis];
                 target[axis] = self.axis_position(axis, value, target[axis], &factor, &absolute);
             }
         }
         // One test for the four axes: the sum is finite only if each is (a finite sum too large
         // to add up merely sends the line to the general path).
-        if !(target[0] + target[1] + target[2] + target[3]).is_finite() {
-            return None;
+        (target[0] + target[1] + target[2] + target[3])
+            .is_finite()
+            .then_some((target, named))
+    }
+
+    /// [`Self::feed`] for the words of a plain line; `None` where that would fail.
+    fn plain_speed(&self, words: &MoveWords) -> Option<f64> {
+        match words.get(F_SLOT) {
+            None => Some(self.speed),
+            Some(f) => self.speed_from_f(f),
         }
-        let speed = if words.has(FEED_SLOT) {
-            self.speed_from_f(words.values[FEED_SLOT])?
-        } else {
-            self.speed
-        };
-        self.last = target;
-        self.speed = speed;
-        let command = Spanned {
-            span: span_of(line, start, command_end.max(params_end)),
-            value: Command::Move(Move {
-                target,
-                named,
-                feed: speed,
-                rapid,
-            }),
-        };
-        Some((command, line_len))
     }
 
     /// G2/G3 in the XY plane, absolute mode only (as Klipper's `gcode_arcs`).
@@ -563,31 +627,42 @@ impl Interpreter {
         } else {
             return Err(Box::new((extent, ErrorKind::ArcMissingCentre)));
         };
-        let centre = [start[0] + offset[0], start[1] + offset[1]];
-        if !(centre[0].is_finite() && centre[1].is_finite()) {
-            return Err(Box::new((extent, ErrorKind::NumberOverflow)));
-        }
-        check_radii(&start, &target, &centre).map_err(|kind| Box::new((extent, kind)))?;
+        let centre =
+            checked_centre(&start, &target, offset).map_err(|kind| Box::new((extent, kind)))?;
         let turns = match line.word(b'P') {
             None => 0,
             Some(word) => turns(word)?,
         };
         let e_written = optional_value(line, b'E')?.map(|v| v * self.unit);
-        self.last = target;
-        self.speed = speed;
-        Ok(ArcMove {
-            start,
+        Ok(self.commit_arc(ArcEnds {
             target,
             centre,
             offset,
             clockwise,
             turns,
-            feed: speed,
+            speed,
             e_written,
+        }))
+    }
+
+    /// Moves to the arc's end (the checks passed) and gives the arc from the current position.
+    fn commit_arc(&mut self, ends: ArcEnds) -> ArcMove {
+        let start = self.last;
+        self.last = ends.target;
+        self.speed = ends.speed;
+        ArcMove {
+            start,
+            target: ends.target,
+            centre: ends.centre,
+            offset: ends.offset,
+            clockwise: ends.clockwise,
+            turns: ends.turns,
+            feed: ends.speed,
+            e_written: ends.e_written,
             base: self.base,
             extrude_factor: self.extrude_factor,
             absolute_extrude: self.absolute_extrude,
-        })
+        }
     }
 
     /// G4: `P` milliseconds or `S` seconds.
@@ -778,30 +853,36 @@ fn quiet_comment_end(bytes: &[u8], semicolon: usize) -> Option<usize> {
     (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some(end)
 }
 
-/// The X Y Z E F values of a plain move, by slot (see [`PLAIN_SLOTS`]).
+/// The values of a plain move's words, by slot (see [`SLOTS`]).
 #[derive(Default)]
-struct PlainWords {
-    values: [f64; 5],
+struct MoveWords {
+    values: [f64; 7],
     /// Bit `slot` set when the word was given.
     given: u8,
 }
 
-impl PlainWords {
-    fn has(&self, slot: usize) -> bool {
-        self.given & (1 << slot) != 0
+impl MoveWords {
+    fn get(&self, slot: usize) -> Option<f64> {
+        (self.given & (1 << slot) != 0).then(|| self.values[slot])
     }
 }
 
-/// Slot of F in [`PlainWords`] (X Y Z E are 0 to 3, as the axes).
-const FEED_SLOT: usize = 4;
+/// Slots of the words in [`MoveWords`]: X Y Z E are 0 to 3, as the axes.
+const E_SLOT: usize = 3;
+const F_SLOT: usize = 4;
+const I_SLOT: usize = 5;
+const J_SLOT: usize = 6;
+/// The slots a plain G0/G1 may give, and those a plain G2/G3 may give.
+const LINEAR_SLOTS: u8 = 0b1_1111;
+const ARC_SLOTS: u8 = 0b111_1111;
 /// Not a plain-move letter.
 const NO_SLOT: u8 = u8::MAX;
 
-/// Slot of each byte that is a plain-move letter (X Y Z E F in either case), else [`NO_SLOT`]: one
-/// look-up per word.
-const PLAIN_SLOTS: [u8; 256] = {
+/// Slot of each byte that is a plain-move letter (X Y Z E F I J in either case), else
+/// [`NO_SLOT`]: one look-up per word.
+const SLOTS: [u8; 256] = {
     let mut table = [NO_SLOT; 256];
-    let letters = *b"XYZEF";
+    let letters = *b"XYZEFIJ";
     let mut slot = 0;
     while slot < letters.len() {
         table[letters[slot] as usize] = slot as u8;
@@ -812,11 +893,15 @@ const PLAIN_SLOTS: [u8; 256] = {
 };
 
 /// The words of a plain move, the end of its last word and the end of the line (where its `\n` or
-/// `\r` is), from `pos` just after the command word; `None` unless the rest of the line is only X
-/// Y Z E F words, each preceded by blanks, each letter once, each with a number the lexer would
-/// accept.
-fn plain_move_words(bytes: &[u8], mut pos: usize) -> Option<(PlainWords, usize, usize)> {
-    let mut words = PlainWords::default();
+/// `\r` is), from `pos` just after the command word; `None` unless the rest of the line is only
+/// words with a slot in `ALLOWED`, each preceded by blanks, each letter once, each with a number
+/// the lexer would accept.
+#[inline]
+fn plain_move_words<const ALLOWED: u8>(
+    bytes: &[u8],
+    mut pos: usize,
+) -> Option<(MoveWords, usize, usize)> {
+    let mut words = MoveWords::default();
     let mut params_end = pos;
     loop {
         // Blanks or the line end must follow the command and each word.
@@ -829,16 +914,17 @@ fn plain_move_words(bytes: &[u8], mut pos: usize) -> Option<(PlainWords, usize, 
             pos += 1;
         }
         let letter = *bytes.get(pos)?;
-        let slot = PLAIN_SLOTS[usize::from(letter)];
+        let slot = SLOTS[usize::from(letter)];
         if slot == NO_SLOT {
             return matches!(letter, b'\n' | b'\r').then_some((words, params_end, pos));
         }
-        if words.given & (1 << slot) != 0 {
+        let slot_bit = 1 << slot;
+        if (words.given | !ALLOWED) & slot_bit != 0 {
             return None;
         }
         let (value, after) = parse_number(bytes, pos + 1).ok()?;
         *words.values.get_mut(usize::from(slot))? = value;
-        words.given |= 1 << slot;
+        words.given |= slot_bit;
         pos = after;
         params_end = after;
     }
@@ -947,6 +1033,31 @@ fn centre_offset_from_radius(
     };
     let (ux, uy) = (dx / chord, dy / chord);
     Ok([dx / 2.0 - left * h * uy, dy / 2.0 + left * h * ux])
+}
+
+/// What an arc line gives besides the interpreter's state, once checked.
+struct ArcEnds {
+    target: Position,
+    centre: [f64; 2],
+    offset: [f64; 2],
+    clockwise: bool,
+    turns: u32,
+    speed: f64,
+    e_written: Option<f64>,
+}
+
+/// The XY centre at `offset` from `start`, when finite and as far from `target` as from `start`.
+fn checked_centre(
+    start: &Position,
+    target: &Position,
+    offset: [f64; 2],
+) -> Result<[f64; 2], ErrorKind> {
+    let centre = [start[0] + offset[0], start[1] + offset[1]];
+    if !(centre[0].is_finite() && centre[1].is_finite()) {
+        return Err(ErrorKind::NumberOverflow);
+    }
+    check_radii(start, target, &centre)?;
+    Ok(centre)
 }
 
 /// Radius at start and end must agree (within 0.005 mm or 0.1 %).
@@ -1330,13 +1441,16 @@ mod tests {
                         "G92 E0", "G92 X1", "M221 S150", "M220 S50", "G20", "G21", "N5 G1", " G1",
                         ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28", "; note", ";TIME_ELAPSED:5",
                         ";TYPE:Perimeter", "  ; x", ";", "   ", "\t;c", "; caf\u{e9}", "; Z:1",
+                        "G2", "G3", "g2", "G2 I1", "G3 J-1", "G2 X2 I1", "G3 Y0 I-1 J0", "G18",
+                        "G17",
                     ]),
                     proptest::collection::vec(
                         proptest::sample::select(vec![
                             " X1.5", " Y-2", " Z.3", " E0.0123", " E-1.25", " F1800", " F0", " F-5",
                             " X", " Q1", "X2", " x3", "\tY4", " E1e5", " X1.2.3", " ;c", " (p)",
                             " *12", "  ", " X+5", " X5.", " Y-.5", " F9e9", " X#", " E99999999999",
-                            " Z123456789012345678901234", " I1", " E",
+                            " Z123456789012345678901234", " I1", " E", " J1", " I-1", " J0", " R1",
+                            " P1", " I", " J.5",
                         ]),
                         0..5,
                     ),
@@ -1355,6 +1469,18 @@ mod tests {
             }
             proptest::prop_assert_eq!(stream(text.as_bytes(), true), stream(text.as_bytes(), false));
         }
+    }
+
+    #[test]
+    fn fast_path_gives_the_arcs_the_general_path_gives() {
+        let text = "G1 X10 Y0 F600\nG3 X0 Y10 I-10 J0 E1\nG2 X10 Y0 I0 J-10 F1200\nG3 X10 Y0 J5\n\
+                    G2 X0 Y0 I0 J0\nG2 X1 Y1 I1 I2\nG2 X1 Y1 I1 Q2\nG2 X5 Y5 I3\nM83\nM221 S90\n\
+                    G92 E0\nG3 X10 Y10 Z1 I-5 J5 E.5\nG20\nG2 X0 Y0 I.1 J.1\nG21\nG18\nG2 X1 I1\n\
+                    G17\nG91\nG2 X1 I1\nG90\n;LAYER_CHANGE\nG3 X0 Y0 I1 J1\n;Z:2\nG2 X0 Y0 I-1 F0\n";
+        assert_eq!(
+            stream(text.as_bytes(), true),
+            stream(text.as_bytes(), false)
+        );
     }
 
     #[test]

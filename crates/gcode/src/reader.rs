@@ -191,6 +191,7 @@ impl<R: BufRead> Reader<R> {
     /// bytes. `take` must accept only UTF-8 lines and change nothing when it gives `None`; the line
     /// is then read by [`Self::next_line`] as usual. At most `max_line_len + 1` bytes are offered,
     /// so a line too long for `next_line` is never taken.
+    #[inline(always)]
     pub(crate) fn take_line_with<T>(
         &mut self,
         take: impl FnOnce(&[u8], u64) -> Option<(T, usize)>,

@@ -67,6 +67,9 @@ pub struct Interpreter {
     extrude_factor: f64,
     plane: Plane,
     queue: VecDeque<Spanned<Command>>,
+    /// The command of the line the fast path took last, until [`Commands::next_command`] hands it
+    /// out (written in place: no copies of a large value through the reader).
+    fast_command: Option<Spanned<Command>>,
     /// A layer start seen whose Z has not arrived yet.
     pending_layer: Option<Span>,
     warnings: Warnings,
@@ -98,6 +101,7 @@ impl Interpreter {
             extrude_factor: 1.0,
             plane: Plane::Xy,
             queue: VecDeque::new(),
+            fast_command: None,
             pending_layer: None,
             warnings: Warnings::default(),
         }
@@ -157,6 +161,7 @@ impl Interpreter {
     }
 
     /// Next interpreted command, if any is queued.
+    #[inline]
     pub fn pop_command(&mut self) -> Option<Spanned<Command>> {
         self.queue.pop_front()
     }
@@ -466,16 +471,17 @@ impl Interpreter {
     /// The fast paths for the commonest lines, read in one pass over the bytes without storing
     /// tokens: a plain move ([`Self::plain_move_line`]), and lines that give no command (blank, or
     /// only a comment without slicer metadata). `bytes` run from the line's start on (past its
-    /// end). Gives the line's command (if any) and its length (up to its `\n` or `\r`), or `None`
-    /// for the general path.
-    fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<(Option<Spanned<Command>>, usize)> {
+    /// end). Gives the line's length (up to its `\n` or `\r`) and leaves its command (if any) in
+    /// `fast_command`, or gives `None` for the general path.
+    fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<usize> {
         let start = skip_blanks(bytes, 0);
         match *bytes.get(start)? {
-            b'\n' | b'\r' => Some((None, start)),
-            b';' => quiet_comment_end(bytes, start).map(|end| (None, end)),
+            b'\n' | b'\r' => Some(start),
+            b';' => quiet_comment_end(bytes, start),
             _ => {
                 let (command, len) = self.plain_move_line(bytes, start, line)?;
-                Some((Some(command), len))
+                self.fast_command = Some(command);
+                Some(len)
             }
         }
     }
@@ -1115,13 +1121,14 @@ impl<R: BufRead> Commands<R> {
             }
             if self.fast_lines {
                 let interpreter = &mut self.interpreter;
-                match self
+                let taken = self
                     .reader
-                    .take_line_with(|bytes, number| interpreter.fast_line(bytes, number))
-                {
-                    Some(Some(command)) => return Some(Ok(command)),
-                    Some(None) => continue,
-                    None => {}
+                    .take_line_with(|bytes, number| interpreter.fast_line(bytes, number));
+                if taken.is_some() {
+                    match self.interpreter.fast_command.take() {
+                        Some(command) => return Some(Ok(command)),
+                        None => continue,
+                    }
                 }
             }
             match self.reader.next_line() {

@@ -186,16 +186,16 @@ impl<R: BufRead> Reader<R> {
     }
 
     /// Offers the buffered bytes from the next line's start to `take`, which reads the line itself
-    /// (one pass: no separate search for the line end, no UTF-8 check) and gives `Some((value,
-    /// len))` when it took the whole line: `len` bytes, then a `\n` or `\r` inside the offered
-    /// bytes. `take` must accept only UTF-8 lines and change nothing when it gives `None`; the line
-    /// is then read by [`Self::next_line`] as usual. At most `max_line_len + 1` bytes are offered,
-    /// so a line too long for `next_line` is never taken.
+    /// (one pass: no separate search for the line end, no UTF-8 check) and gives `Some(len)` when
+    /// it took the whole line: `len` bytes, then a `\n` or `\r` inside the offered bytes; the line
+    /// is then consumed. `take` must accept only UTF-8 lines and change nothing when it gives
+    /// `None`; the line is then read by [`Self::next_line`] as usual. At most `max_line_len + 1`
+    /// bytes are offered, so a line too long for `next_line` is never taken.
     #[inline(always)]
-    pub(crate) fn take_line_with<T>(
+    pub(crate) fn take_line_with(
         &mut self,
-        take: impl FnOnce(&[u8], u64) -> Option<(T, usize)>,
-    ) -> Option<T> {
+        take: impl FnOnce(&[u8], u64) -> Option<usize>,
+    ) -> Option<()> {
         if self.failed_io || self.pending_io_error.is_some() {
             return None;
         }
@@ -216,7 +216,7 @@ impl<R: BufRead> Reader<R> {
                 .saturating_add(self.options.max_line_len)
                 .saturating_add(1),
         );
-        let (taken, len) = take(available.get(start..offered_end)?, self.line + 1)?;
+        let len = take(available.get(start..offered_end)?, self.line + 1)?;
         let end = start + len;
         debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
         self.skip_lf = available.get(end) == Some(&b'\r');
@@ -225,7 +225,7 @@ impl<R: BufRead> Reader<R> {
         self.utf8_checked = self.utf8_checked.saturating_sub(consume);
         self.line += 1;
         self.bytes_consumed += consume as u64;
-        Some(taken)
+        Some(())
     }
 
     /// Consumes the line handed out last.

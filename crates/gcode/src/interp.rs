@@ -478,11 +478,7 @@ impl Interpreter {
         match *bytes.get(start)? {
             b'\n' | b'\r' => Some(start),
             b';' => quiet_comment_end(bytes, start),
-            _ => {
-                let (command, len) = self.plain_move_line(bytes, start, line)?;
-                self.fast_command = Some(command);
-                Some(len)
-            }
+            _ => self.plain_move_line(bytes, start, line),
         }
     }
 
@@ -490,13 +486,9 @@ impl Interpreter {
     /// (arcs also I J), each once, each with a number, and nothing else. Any other line, a line
     /// whose end is not in `bytes`, and a move that would fail or warn, give `None` and go through
     /// the lexer and [`Self::interpret`], which give the same command for the lines this takes
-    /// (checked by the `fast_path_*` tests).
-    fn plain_move_line(
-        &mut self,
-        bytes: &[u8],
-        start: usize,
-        line: u64,
-    ) -> Option<(Spanned<Command>, usize)> {
+    /// (checked by the `fast_path_*` tests). Gives the line's length and leaves its command in
+    /// `fast_command`.
+    fn plain_move_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
         if self.pending_layer.is_some() || !self.queue.is_empty() {
             return None;
         }
@@ -509,11 +501,10 @@ impl Interpreter {
         };
         let command_end = start + 2;
         let (words, params_end, line_len) = plain_move_words::<LINEAR_SLOTS>(bytes, command_end)?;
-        let command = Spanned {
-            span: span_of(line, start, command_end.max(params_end)),
-            value: Command::Move(self.plain_linear_move(&words, rapid)?),
-        };
-        Some((command, line_len))
+        let value = Command::Move(self.plain_linear_move(&words, rapid)?);
+        let span = span_of(line, start, command_end.max(params_end));
+        self.fast_command = Some(Spanned { span, value });
+        Some(line_len)
     }
 
     /// [`Self::plain_move_line`] for `G2`/`G3`, kept out of line: arcs are rarer, and the
@@ -525,14 +516,13 @@ impl Interpreter {
         start: usize,
         line: u64,
         clockwise: bool,
-    ) -> Option<(Spanned<Command>, usize)> {
+    ) -> Option<usize> {
         let command_end = start + 2;
         let (words, params_end, line_len) = plain_move_words::<ARC_SLOTS>(bytes, command_end)?;
-        let command = Spanned {
-            span: span_of(line, start, command_end.max(params_end)),
-            value: Command::Arc(Box::new(self.plain_arc(&words, clockwise)?)),
-        };
-        Some((command, line_len))
+        let value = Command::Arc(Box::new(self.plain_arc(&words, clockwise)?));
+        let span = span_of(line, start, command_end.max(params_end));
+        self.fast_command = Some(Spanned { span, value });
+        Some(line_len)
     }
 
     /// [`Self::linear_move`] for the words of a plain line; `None` where that would fail.

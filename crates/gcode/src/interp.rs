@@ -469,17 +469,68 @@ impl Interpreter {
     }
 
     /// The fast paths for the commonest lines, read in one pass over the bytes without storing
-    /// tokens: a plain move ([`Self::plain_move_line`]), and lines that give no command (blank, or
-    /// only a comment without slicer metadata). `bytes` run from the line's start on (past its
+    /// tokens: a plain move ([`Self::plain_move_line`]), a blank line and a comment-only line
+    /// ([`Self::comment_line`]). `bytes` run from the line's start on (past its
     /// end). Gives the line's length (up to its `\n` or `\r`) and leaves its command (if any) in
     /// `fast_command`, or gives `None` for the general path.
     fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<usize> {
         let start = skip_blanks(bytes, 0);
         match *bytes.get(start)? {
             b'\n' | b'\r' => Some(start),
-            b';' => quiet_comment_end(bytes, start),
+            b';' => self.comment_line(bytes, start, line),
             _ => self.plain_move_line(bytes, start, line),
         }
+    }
+
+    /// A comment-only line (its `;` at `semicolon`) as the general path reads it when nothing is
+    /// queued: no command, or the one its slicer metadata gives. `None` when the comment is not
+    /// UTF-8 (the general path warns) and when its end is not in `bytes`.
+    fn comment_line(&mut self, bytes: &[u8], semicolon: usize, line: u64) -> Option<usize> {
+        let first = skip_blanks(bytes, semicolon + 1);
+        let may_hold_meta = may_start_meta(*bytes.get(first)?);
+        let end = semicolon + memchr::memchr2(b'\n', b'\r', &bytes[semicolon..])?;
+        let text = &bytes[semicolon + 1..end];
+        if !may_hold_meta {
+            return (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some(end);
+        }
+        let text = std::str::from_utf8(text).ok()?;
+        self.comment_line_meta(text, span_of(line, semicolon, end))?;
+        Some(end)
+    }
+
+    /// [`Self::comments`] for the one comment of a comment-only line; `None` (nothing changed)
+    /// where that would flush a pending layer start, which the general path does.
+    #[inline(never)]
+    fn comment_line_meta(&mut self, text: &str, span: Span) -> Option<()> {
+        if !self.queue.is_empty() {
+            return None;
+        }
+        match comment_meta(text) {
+            None => {}
+            Some(CommentMeta::Meta(meta)) => {
+                if self.pending_layer.is_some() {
+                    return None;
+                }
+                let value = Command::Meta(meta);
+                self.fast_command = Some(Spanned { span, value });
+            }
+            Some(CommentMeta::LayerStart) => {
+                if self.pending_layer.is_some() {
+                    return None;
+                }
+                self.pending_layer = Some(span);
+            }
+            Some(CommentMeta::LayerZ(z)) => {
+                if let Some(span) = self.pending_layer.take() {
+                    let value = Command::Meta(Meta::LayerChange {
+                        index: None,
+                        z: Some(z),
+                    });
+                    self.fast_command = Some(Spanned { span, value });
+                }
+            }
+        }
+        Some(())
     }
 
     /// A plain `G0`/`G1`/`G2`/`G3` (its command word at `start`): blank-separated X Y Z E F words
@@ -836,19 +887,6 @@ fn skip_blanks(text: &[u8], pos: usize) -> usize {
     pos + blanks
 }
 
-/// The line end of a comment-only line (its `;` at `semicolon`) that gives no command: its text
-/// holds no slicer metadata and is UTF-8 (else the general path warns). `None` for any other line,
-/// and when the line end is not in `bytes`.
-fn quiet_comment_end(bytes: &[u8], semicolon: usize) -> Option<usize> {
-    let first = skip_blanks(bytes, semicolon + 1);
-    if may_start_meta(*bytes.get(first)?) {
-        return None;
-    }
-    let end = semicolon + memchr::memchr2(b'\n', b'\r', &bytes[semicolon..])?;
-    let text = &bytes[semicolon + 1..end];
-    (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some(end)
-}
-
 /// The values of a plain move's words, by slot (see [`SLOTS`]).
 #[derive(Default)]
 struct MoveWords {
@@ -1078,7 +1116,7 @@ pub struct Commands<R> {
     interpreter: Interpreter,
     source: Arc<str>,
     finished: bool,
-    /// Plain moves and lines without commands take [`Interpreter::fast_line`] (off only in tests,
+    /// Plain moves, blank and comment-only lines take [`Interpreter::fast_line`] (off only in tests,
     /// to compare).
     fast_lines: bool,
 }
@@ -1439,7 +1477,8 @@ mod tests {
                         ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28", "; note", ";TIME_ELAPSED:5",
                         ";TYPE:Perimeter", "  ; x", ";", "   ", "\t;c", "; caf\u{e9}", "; Z:1",
                         "G2", "G3", "g2", "G2 I1", "G3 J-1", "G2 X2 I1", "G3 Y0 I-1 J0", "G18",
-                        "G17",
+                        "G17", ";LAYER:3", "; CHANGE_LAYER", "; Z_HEIGHT: 0.6", "; printing object a",
+                        ";TYPE:", "; feature skirt", ";Z:x",
                     ]),
                     proptest::collection::vec(
                         proptest::sample::select(vec![

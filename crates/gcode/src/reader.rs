@@ -35,6 +35,8 @@ pub struct Reader<R> {
     input: R,
     source: Arc<str>,
     options: ReaderOptions,
+    /// `max_line_len + 1`: the most bytes [`Self::take_line_with`] offers.
+    offer_len: usize,
     buf: Vec<u8>,
     lossy: String,
     tokens: LineTokens,
@@ -82,6 +84,7 @@ impl<R: BufRead> Reader<R> {
             input,
             source: source.into(),
             options,
+            offer_len: options.max_line_len.saturating_add(1),
             buf: Vec::with_capacity(256),
             lossy: String::new(),
             tokens: LineTokens::default(),
@@ -211,11 +214,7 @@ impl<R: BufRead> Reader<R> {
             }
         };
         let start = usize::from(self.skip_lf && available.first() == Some(&b'\n'));
-        let offered_end = available.len().min(
-            start
-                .saturating_add(self.options.max_line_len)
-                .saturating_add(1),
-        );
+        let offered_end = available.len().min(start.saturating_add(self.offer_len));
         let len = take(available.get(start..offered_end)?, self.line + 1)?;
         let end = start + len;
         debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));

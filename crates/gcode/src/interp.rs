@@ -533,12 +533,12 @@ impl Interpreter {
         Some(())
     }
 
-    /// A plain `G0`/`G1`/`G2`/`G3` (its command word at `start`): blank-separated X Y Z E F words
-    /// (arcs also I J), each once, each with a number, and nothing else. Any other line, a line
-    /// whose end is not in `bytes`, and a move that would fail or warn, give `None` and go through
-    /// the lexer and [`Self::interpret`], which give the same command for the lines this takes
-    /// (checked by the `fast_path_*` tests). Gives the line's length and leaves its command in
-    /// `fast_command`.
+    /// A plain `G0`/`G1`/`G2`/`G3`/`G92` (its command word at `start`): blank-separated X Y Z E F
+    /// words (arcs also I J; G92 no F), each once, each with a number, and nothing else. Any
+    /// other line, a line whose end is not in `bytes`, and a command that would fail or warn, give
+    /// `None` and go through the lexer and [`Self::interpret`], which give the same command for the
+    /// lines this takes (checked by the `fast_path_*` tests). Gives the line's length and leaves
+    /// its command in `fast_command`.
     fn plain_move_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
         if self.pending_layer.is_some() || !self.queue.is_empty() {
             return None;
@@ -548,6 +548,9 @@ impl Interpreter {
             [b'G' | b'g', b'1'] => false,
             [b'G' | b'g', b'2'] => return self.plain_arc_line(bytes, start, line, true),
             [b'G' | b'g', b'3'] => return self.plain_arc_line(bytes, start, line, false),
+            [b'G' | b'g', b'9'] if bytes.get(start + 2) == Some(&b'2') => {
+                return self.plain_set_position_line(bytes, start, line);
+            }
             _ => return None,
         };
         let command_end = start + 2;
@@ -571,6 +574,18 @@ impl Interpreter {
         let command_end = start + 2;
         let (words, params_end, line_len) = plain_move_words::<ARC_SLOTS>(bytes, command_end)?;
         let value = Command::Arc(Box::new(self.plain_arc(&words, clockwise)?));
+        let span = span_of(line, start, command_end.max(params_end));
+        self.fast_command = Some(Spanned { span, value });
+        Some(line_len)
+    }
+
+    /// [`Self::plain_move_line`] for `G92` with X Y Z E words (slicers reset E this way).
+    #[inline(never)]
+    fn plain_set_position_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
+        let command_end = start + 3;
+        let (words, params_end, line_len) = plain_move_words::<POSITION_SLOTS>(bytes, command_end)?;
+        let values = [0, 1, 2, 3].map(|axis| words.get(axis).map(|v| v * self.unit));
+        let value = self.apply_set_position(values).ok()?;
         let span = span_of(line, start, command_end.max(params_end));
         self.fast_command = Some(Spanned { span, value });
         Some(line_len)
@@ -736,6 +751,7 @@ impl Interpreter {
     fn set_gcode_position(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
         self.check_letters(line, XYZEF & !bit(b'F'));
         let mut values = [None; 4];
+        let mut spans = [Span::default(); 4];
         for word in line.words() {
             let axis = match word.letter {
                 b'X' => 0,
@@ -744,8 +760,16 @@ impl Interpreter {
                 b'E' => 3,
                 _ => continue,
             };
-            values[axis] = Some((required(word)? * self.unit, word.span));
+            values[axis] = Some(required(word)? * self.unit);
+            spans[axis] = word.span;
         }
+        self.apply_set_position(values)
+            .map_err(|axis| Box::new((spans[axis], ErrorKind::NumberOverflow)))
+    }
+
+    /// G92 for the G-code values given (in mm): `base = last − value` for each, or all four zeroed
+    /// when none is given. `Err(axis)`, with nothing changed, when an axis's offset overflows.
+    fn apply_set_position(&mut self, values: [Option<f64>; 4]) -> Result<Command, usize> {
         let mut position = [None; 4];
         if values.iter().all(Option::is_none) {
             self.base = self.last;
@@ -755,7 +779,7 @@ impl Interpreter {
         }
         let mut base = self.base;
         for (axis, value) in values.iter().enumerate() {
-            let Some((value, span)) = *value else {
+            let Some(value) = *value else {
                 continue;
             };
             let offset = if axis == 3 {
@@ -765,7 +789,7 @@ impl Interpreter {
             };
             base[axis] = self.last[axis] - offset;
             if !base[axis].is_finite() {
-                return Err(Box::new((span, ErrorKind::NumberOverflow)));
+                return Err(axis);
             }
             position[axis] = Some(value);
         }
@@ -906,8 +930,9 @@ const E_SLOT: usize = 3;
 const F_SLOT: usize = 4;
 const I_SLOT: usize = 5;
 const J_SLOT: usize = 6;
-/// The slots a plain G0/G1 may give, and those a plain G2/G3 may give.
+/// The slots a plain G0/G1 may give, those a plain G2/G3 may give, and those of G92.
 const LINEAR_SLOTS: u8 = 0b1_1111;
+const POSITION_SLOTS: u8 = 0b1111;
 const ARC_SLOTS: u8 = 0b111_1111;
 /// Not a plain-move letter.
 const NO_SLOT: u8 = u8::MAX;
@@ -1478,7 +1503,7 @@ mod tests {
                         ";TYPE:Perimeter", "  ; x", ";", "   ", "\t;c", "; caf\u{e9}", "; Z:1",
                         "G2", "G3", "g2", "G2 I1", "G3 J-1", "G2 X2 I1", "G3 Y0 I-1 J0", "G18",
                         "G17", ";LAYER:3", "; CHANGE_LAYER", "; Z_HEIGHT: 0.6", "; printing object a",
-                        ";TYPE:", "; feature skirt", ";Z:x",
+                        ";TYPE:", "; feature skirt", ";Z:x", "G92", "g92 E-1", "G92.1", "G920",
                     ]),
                     proptest::collection::vec(
                         proptest::sample::select(vec![
@@ -1513,6 +1538,19 @@ mod tests {
                     G2 X0 Y0 I0 J0\nG2 X1 Y1 I1 I2\nG2 X1 Y1 I1 Q2\nG2 X5 Y5 I3\nM83\nM221 S90\n\
                     G92 E0\nG3 X10 Y10 Z1 I-5 J5 E.5\nG20\nG2 X0 Y0 I.1 J.1\nG21\nG18\nG2 X1 I1\n\
                     G17\nG91\nG2 X1 I1\nG90\n;LAYER_CHANGE\nG3 X0 Y0 I1 J1\n;Z:2\nG2 X0 Y0 I-1 F0\n";
+        assert_eq!(
+            stream(text.as_bytes(), true),
+            stream(text.as_bytes(), false)
+        );
+    }
+
+    #[test]
+    fn fast_path_gives_the_g92_the_general_path_gives() {
+        let huge = "9".repeat(308);
+        let text = format!(
+            "G1 X5 E3\nG92 E0\nG92\nM221 S50\nG92 E1 X2 Y3 Z4\nG20\nG92 X{huge}\nG92 E2 E3\n\
+             G92 F1\nG92 E\n;LAYER_CHANGE\nG92 E0\n"
+        );
         assert_eq!(
             stream(text.as_bytes(), true),
             stream(text.as_bytes(), false)

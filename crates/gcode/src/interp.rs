@@ -1469,7 +1469,12 @@ mod tests {
     /// Everything a stream gives, as text (`{:?}` tells `-0.0` from `0.0`): each command or error,
     /// the warnings, and the final state.
     fn stream(text: &[u8], fast_lines: bool) -> String {
-        let mut commands = Commands::from_reader(text, "t");
+        stream_from(text, fast_lines)
+    }
+
+    /// [`stream`] from any input (a small `BufReader` splits lines across refills).
+    fn stream_from(input: impl BufRead, fast_lines: bool) -> String {
+        let mut commands = Commands::from_reader(input, "t");
         commands.fast_lines = fast_lines;
         let out: Vec<_> = commands.by_ref().collect();
         let warnings = commands.take_warnings();
@@ -1518,7 +1523,8 @@ mod tests {
                     proptest::sample::select(vec!["\n", "\r\n", "\r"]),
                 ),
                 0..12,
-            )
+            ),
+            capacity in 1usize..48,
         ) {
             let mut text = String::new();
             for (command, words, end) in &lines {
@@ -1528,7 +1534,10 @@ mod tests {
                 }
                 text.push_str(end);
             }
-            proptest::prop_assert_eq!(stream(text.as_bytes(), true), stream(text.as_bytes(), false));
+            let general = stream(text.as_bytes(), false);
+            proptest::prop_assert_eq!(&stream(text.as_bytes(), true), &general);
+            let small_buffer = std::io::BufReader::with_capacity(capacity, text.as_bytes());
+            proptest::prop_assert_eq!(&stream_from(small_buffer, true), &general);
         }
     }
 

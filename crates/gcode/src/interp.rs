@@ -15,7 +15,7 @@ use crate::command::{
 };
 use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
 use crate::lexer::{CommandWord, Line, Word, span_of};
-use crate::meta::{CommentMeta, comment_meta};
+use crate::meta::{CommentMeta, comment_meta, may_start_meta};
 use crate::number::parse_number;
 use crate::reader::Reader;
 
@@ -67,6 +67,9 @@ pub struct Interpreter {
     extrude_factor: f64,
     plane: Plane,
     queue: VecDeque<Spanned<Command>>,
+    /// The command of the line the fast path took last, until [`Commands::next_command`] hands it
+    /// out (written in place: no copies of a large value through the reader).
+    fast_command: Option<Spanned<Command>>,
     /// A layer start seen whose Z has not arrived yet.
     pending_layer: Option<Span>,
     warnings: Warnings,
@@ -98,6 +101,7 @@ impl Interpreter {
             extrude_factor: 1.0,
             plane: Plane::Xy,
             queue: VecDeque::new(),
+            fast_command: None,
             pending_layer: None,
             warnings: Warnings::default(),
         }
@@ -157,6 +161,7 @@ impl Interpreter {
     }
 
     /// Next interpreted command, if any is queued.
+    #[inline]
     pub fn pop_command(&mut self) -> Option<Spanned<Command>> {
         self.queue.pop_front()
     }
@@ -463,50 +468,197 @@ impl Interpreter {
         (f > 0.0 && speed.is_finite() && speed > 0.0).then_some(speed)
     }
 
-    /// The fast path for the commonest line, a plain `G0`/`G1` with blank-separated X Y Z E F words
-    /// (each once, each with a number) and nothing else: lexed and interpreted in one pass over the
-    /// bytes, without storing tokens. Any other line, and a move that would fail or warn, gives
-    /// `None` and goes through the lexer and [`Self::interpret`], which give the same command for
-    /// the lines this takes (checked by the `fast_path_*` tests).
-    fn plain_move_line(&mut self, text: &[u8], line: u64) -> Option<Spanned<Command>> {
+    /// The fast paths for the commonest lines, read in one pass over the bytes without storing
+    /// tokens: a plain move ([`Self::plain_move_line`]), a blank line and a comment-only line
+    /// ([`Self::comment_line`]). `bytes` run from the line's start on (past its
+    /// end). Gives the line's length (up to its `\n` or `\r`) and leaves its command (if any) in
+    /// `fast_command`, or gives `None` for the general path.
+    fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<usize> {
+        let start = skip_blanks(bytes, 0);
+        match *bytes.get(start)? {
+            b'\n' | b'\r' => Some(start),
+            b';' => self.comment_line(bytes, start, line),
+            _ => self.plain_move_line(bytes, start, line),
+        }
+    }
+
+    /// A comment-only line (its `;` at `semicolon`) as the general path reads it when nothing is
+    /// queued: no command, or the one its slicer metadata gives. `None` when the comment is not
+    /// UTF-8 (the general path warns) and when its end is not in `bytes`.
+    fn comment_line(&mut self, bytes: &[u8], semicolon: usize, line: u64) -> Option<usize> {
+        let first = skip_blanks(bytes, semicolon + 1);
+        let may_hold_meta = may_start_meta(*bytes.get(first)?);
+        let end = semicolon + memchr::memchr2(b'\n', b'\r', &bytes[semicolon..])?;
+        let text = &bytes[semicolon + 1..end];
+        if !may_hold_meta {
+            return (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some(end);
+        }
+        let text = std::str::from_utf8(text).ok()?;
+        self.comment_line_meta(text, span_of(line, semicolon, end))?;
+        Some(end)
+    }
+
+    /// [`Self::comments`] for the one comment of a comment-only line; `None` (nothing changed)
+    /// where that would flush a pending layer start, which the general path does.
+    #[inline(never)]
+    fn comment_line_meta(&mut self, text: &str, span: Span) -> Option<()> {
+        if !self.queue.is_empty() {
+            return None;
+        }
+        match comment_meta(text) {
+            None => {}
+            Some(CommentMeta::Meta(meta)) => {
+                if self.pending_layer.is_some() {
+                    return None;
+                }
+                let value = Command::Meta(meta);
+                self.fast_command = Some(Spanned { span, value });
+            }
+            Some(CommentMeta::LayerStart) => {
+                if self.pending_layer.is_some() {
+                    return None;
+                }
+                self.pending_layer = Some(span);
+            }
+            Some(CommentMeta::LayerZ(z)) => {
+                if let Some(span) = self.pending_layer.take() {
+                    let value = Command::Meta(Meta::LayerChange {
+                        index: None,
+                        z: Some(z),
+                    });
+                    self.fast_command = Some(Spanned { span, value });
+                }
+            }
+        }
+        Some(())
+    }
+
+    /// A plain `G0`/`G1`/`G2`/`G3`/`G92` (its command word at `start`): blank-separated X Y Z E F
+    /// words (arcs also I J; G92 no F), each once, each with a number, and nothing else. Any
+    /// other line, a line whose end is not in `bytes`, and a command that would fail or warn, give
+    /// `None` and go through the lexer and [`Self::interpret`], which give the same command for the
+    /// lines this takes (checked by the `fast_path_*` tests). Gives the line's length and leaves
+    /// its command in `fast_command`.
+    fn plain_move_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
         if self.pending_layer.is_some() || !self.queue.is_empty() {
             return None;
         }
-        let start = skip_blanks(text, 0);
-        let rapid = match text.get(start..start + 2)? {
+        let rapid = match bytes.get(start..start + 2)? {
             [b'G' | b'g', b'0'] => true,
             [b'G' | b'g', b'1'] => false,
+            [b'G' | b'g', b'2'] => return self.plain_arc_line(bytes, start, line, true),
+            [b'G' | b'g', b'3'] => return self.plain_arc_line(bytes, start, line, false),
+            [b'G' | b'g', b'9'] if bytes.get(start + 2) == Some(&b'2') => {
+                return self.plain_set_position_line(bytes, start, line);
+            }
             _ => return None,
         };
         let command_end = start + 2;
-        let (values, params_end) = plain_move_words(text, command_end)?;
+        let (words, params_end, line_len) = plain_move_words::<LINEAR_SLOTS>(bytes, command_end)?;
+        let value = Command::Move(self.plain_linear_move(&words, rapid)?);
+        let span = span_of(line, start, command_end.max(params_end));
+        self.fast_command = Some(Spanned { span, value });
+        Some(line_len)
+    }
+
+    /// [`Self::plain_move_line`] for `G2`/`G3`, kept out of line: arcs are rarer, and the
+    /// straight moves' loop stays as tight as without them.
+    #[inline(never)]
+    fn plain_arc_line(
+        &mut self,
+        bytes: &[u8],
+        start: usize,
+        line: u64,
+        clockwise: bool,
+    ) -> Option<usize> {
+        let command_end = start + 2;
+        let (words, params_end, line_len) = plain_move_words::<ARC_SLOTS>(bytes, command_end)?;
+        let value = Command::Arc(Box::new(self.plain_arc(&words, clockwise)?));
+        let span = span_of(line, start, command_end.max(params_end));
+        self.fast_command = Some(Spanned { span, value });
+        Some(line_len)
+    }
+
+    /// [`Self::plain_move_line`] for `G92` with X Y Z E words (slicers reset E this way).
+    #[inline(never)]
+    fn plain_set_position_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
+        let command_end = start + 3;
+        let (words, params_end, line_len) = plain_move_words::<POSITION_SLOTS>(bytes, command_end)?;
+        let values = [0, 1, 2, 3].map(|axis| words.get(axis).map(|v| v * self.unit));
+        let value = self.apply_set_position(values).ok()?;
+        let span = span_of(line, start, command_end.max(params_end));
+        self.fast_command = Some(Spanned { span, value });
+        Some(line_len)
+    }
+
+    /// [`Self::linear_move`] for the words of a plain line; `None` where that would fail.
+    fn plain_linear_move(&mut self, words: &MoveWords, rapid: bool) -> Option<Move> {
+        let (target, named) = self.plain_target(words)?;
+        let speed = self.plain_speed(words)?;
+        self.last = target;
+        self.speed = speed;
+        Some(Move {
+            target,
+            named,
+            feed: speed,
+            rapid,
+        })
+    }
+
+    /// [`Self::arc`] for the words of a plain line with I or J; `None` where that would fail.
+    fn plain_arc(&mut self, words: &MoveWords, clockwise: bool) -> Option<ArcMove> {
+        if !self.absolute_coord || self.plane != Plane::Xy {
+            return None;
+        }
+        let (target, _) = self.plain_target(words)?;
+        let speed = self.plain_speed(words)?;
+        let i = words.get(I_SLOT).map(|v| v * self.unit);
+        let j = words.get(J_SLOT).map(|v| v * self.unit);
+        if i.is_none() && j.is_none() {
+            return None;
+        }
+        let offset = [i.unwrap_or(0.0), j.unwrap_or(0.0)];
+        if offset[0].hypot(offset[1]) == 0.0 {
+            return None;
+        }
+        let centre = checked_centre(&self.last, &target, offset).ok()?;
+        let e_written = words.get(E_SLOT).map(|v| v * self.unit);
+        Some(self.commit_arc(ArcEnds {
+            target,
+            centre,
+            offset,
+            clockwise,
+            turns: 0,
+            speed,
+            e_written,
+        }))
+    }
+
+    /// [`Self::target`] for the words of a plain line (not committed); `None` where that would
+    /// fail.
+    fn plain_target(&self, words: &MoveWords) -> Option<(Position, [bool; 4])> {
         let (factor, absolute) = self.axis_modes();
         let mut target = self.last;
         let mut named = [false; 4];
         for axis in 0..4 {
-            if let Some(value) = values[axis] {
+            if let Some(value) = words.get(axis) {
                 named[axis] = true;
                 target[axis] = self.axis_position(axis, value, target[axis], &factor, &absolute);
-                if !target[axis].is_finite() {
-                    return None;
-                }
             }
         }
-        let speed = match values[4] {
-            None => self.speed,
-            Some(f) => self.speed_from_f(f)?,
-        };
-        self.last = target;
-        self.speed = speed;
-        Some(Spanned {
-            span: span_of(line, start, command_end.max(params_end)),
-            value: Command::Move(Move {
-                target,
-                named,
-                feed: speed,
-                rapid,
-            }),
-        })
+        // One test for the four axes: the sum is finite only if each is (a finite sum too large
+        // to add up merely sends the line to the general path).
+        (target[0] + target[1] + target[2] + target[3])
+            .is_finite()
+            .then_some((target, named))
+    }
+
+    /// [`Self::feed`] for the words of a plain line; `None` where that would fail.
+    fn plain_speed(&self, words: &MoveWords) -> Option<f64> {
+        match words.get(F_SLOT) {
+            None => Some(self.speed),
+            Some(f) => self.speed_from_f(f),
+        }
     }
 
     /// G2/G3 in the XY plane, absolute mode only (as Klipper's `gcode_arcs`).
@@ -537,31 +689,42 @@ impl Interpreter {
         } else {
             return Err(Box::new((extent, ErrorKind::ArcMissingCentre)));
         };
-        let centre = [start[0] + offset[0], start[1] + offset[1]];
-        if !(centre[0].is_finite() && centre[1].is_finite()) {
-            return Err(Box::new((extent, ErrorKind::NumberOverflow)));
-        }
-        check_radii(&start, &target, &centre).map_err(|kind| Box::new((extent, kind)))?;
+        let centre =
+            checked_centre(&start, &target, offset).map_err(|kind| Box::new((extent, kind)))?;
         let turns = match line.word(b'P') {
             None => 0,
             Some(word) => turns(word)?,
         };
         let e_written = optional_value(line, b'E')?.map(|v| v * self.unit);
-        self.last = target;
-        self.speed = speed;
-        Ok(ArcMove {
-            start,
+        Ok(self.commit_arc(ArcEnds {
             target,
             centre,
             offset,
             clockwise,
             turns,
-            feed: speed,
+            speed,
             e_written,
+        }))
+    }
+
+    /// Moves to the arc's end (the checks passed) and gives the arc from the current position.
+    fn commit_arc(&mut self, ends: ArcEnds) -> ArcMove {
+        let start = self.last;
+        self.last = ends.target;
+        self.speed = ends.speed;
+        ArcMove {
+            start,
+            target: ends.target,
+            centre: ends.centre,
+            offset: ends.offset,
+            clockwise: ends.clockwise,
+            turns: ends.turns,
+            feed: ends.speed,
+            e_written: ends.e_written,
             base: self.base,
             extrude_factor: self.extrude_factor,
             absolute_extrude: self.absolute_extrude,
-        })
+        }
     }
 
     /// G4: `P` milliseconds or `S` seconds.
@@ -588,6 +751,7 @@ impl Interpreter {
     fn set_gcode_position(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
         self.check_letters(line, XYZEF & !bit(b'F'));
         let mut values = [None; 4];
+        let mut spans = [Span::default(); 4];
         for word in line.words() {
             let axis = match word.letter {
                 b'X' => 0,
@@ -596,8 +760,16 @@ impl Interpreter {
                 b'E' => 3,
                 _ => continue,
             };
-            values[axis] = Some((required(word)? * self.unit, word.span));
+            values[axis] = Some(required(word)? * self.unit);
+            spans[axis] = word.span;
         }
+        self.apply_set_position(values)
+            .map_err(|axis| Box::new((spans[axis], ErrorKind::NumberOverflow)))
+    }
+
+    /// G92 for the G-code values given (in mm): `base = last − value` for each, or all four zeroed
+    /// when none is given. `Err(axis)`, with nothing changed, when an axis's offset overflows.
+    fn apply_set_position(&mut self, values: [Option<f64>; 4]) -> Result<Command, usize> {
         let mut position = [None; 4];
         if values.iter().all(Option::is_none) {
             self.base = self.last;
@@ -607,7 +779,7 @@ impl Interpreter {
         }
         let mut base = self.base;
         for (axis, value) in values.iter().enumerate() {
-            let Some((value, span)) = *value else {
+            let Some(value) = *value else {
                 continue;
             };
             let offset = if axis == 3 {
@@ -617,7 +789,7 @@ impl Interpreter {
             };
             base[axis] = self.last[axis] - offset;
             if !base[axis].is_finite() {
-                return Err(Box::new((span, ErrorKind::NumberOverflow)));
+                return Err(axis);
             }
             position[axis] = Some(value);
         }
@@ -739,38 +911,81 @@ fn skip_blanks(text: &[u8], pos: usize) -> usize {
     pos + blanks
 }
 
-/// The X Y Z E F values of a plain move's words (`None` where absent) and the end of the last
-/// word, from `pos` just after the command word; `None` unless the rest of the line is only such
-/// words, each preceded by blanks, each letter once, each with a number the lexer would accept.
-fn plain_move_words(text: &[u8], mut pos: usize) -> Option<([Option<f64>; 5], usize)> {
-    let mut values = [None; 5];
-    let mut end = pos;
+/// The values of a plain move's words, by slot (see [`SLOTS`]).
+#[derive(Default)]
+struct MoveWords {
+    values: [f64; 7],
+    /// Bit `slot` set when the word was given.
+    given: u8,
+}
+
+impl MoveWords {
+    fn get(&self, slot: usize) -> Option<f64> {
+        (self.given & (1 << slot) != 0).then(|| self.values[slot])
+    }
+}
+
+/// Slots of the words in [`MoveWords`]: X Y Z E are 0 to 3, as the axes.
+const E_SLOT: usize = 3;
+const F_SLOT: usize = 4;
+const I_SLOT: usize = 5;
+const J_SLOT: usize = 6;
+/// The slots a plain G0/G1 may give, those a plain G2/G3 may give, and those of G92.
+const LINEAR_SLOTS: u8 = 0b1_1111;
+const POSITION_SLOTS: u8 = 0b1111;
+const ARC_SLOTS: u8 = 0b111_1111;
+/// Not a plain-move letter.
+const NO_SLOT: u8 = u8::MAX;
+
+/// Slot of each byte that is a plain-move letter (X Y Z E F I J in either case), else
+/// [`NO_SLOT`]: one look-up per word.
+const SLOTS: [u8; 256] = {
+    let mut table = [NO_SLOT; 256];
+    let letters = *b"XYZEFIJ";
+    let mut slot = 0;
+    while slot < letters.len() {
+        table[letters[slot] as usize] = slot as u8;
+        table[letters[slot].to_ascii_lowercase() as usize] = slot as u8;
+        slot += 1;
+    }
+    table
+};
+
+/// The words of a plain move, the end of its last word and the end of the line (where its `\n` or
+/// `\r` is), from `pos` just after the command word; `None` unless the rest of the line is only
+/// words with a slot in `ALLOWED`, each preceded by blanks, each letter once, each with a number
+/// the lexer would accept.
+#[inline]
+fn plain_move_words<const ALLOWED: u8>(
+    bytes: &[u8],
+    mut pos: usize,
+) -> Option<(MoveWords, usize, usize)> {
+    let mut words = MoveWords::default();
+    let mut params_end = pos;
     loop {
-        let next = skip_blanks(text, pos);
-        let Some(&letter) = text.get(next) else {
-            return Some((values, end));
-        };
-        if next == pos {
-            return None;
-        }
-        let slot = match letter.to_ascii_uppercase() {
-            b'X' => 0,
-            b'Y' => 1,
-            b'Z' => 2,
-            b'E' => 3,
-            b'F' => 4,
+        // Blanks or the line end must follow the command and each word.
+        match *bytes.get(pos)? {
+            b' ' | b'\t' => pos += 1,
+            b'\n' | b'\r' => return Some((words, params_end, pos)),
             _ => return None,
-        };
-        if values[slot].is_some() {
+        }
+        while let Some(b' ' | b'\t') = bytes.get(pos) {
+            pos += 1;
+        }
+        let letter = *bytes.get(pos)?;
+        let slot = SLOTS[usize::from(letter)];
+        if slot == NO_SLOT {
+            return matches!(letter, b'\n' | b'\r').then_some((words, params_end, pos));
+        }
+        let slot_bit = 1 << slot;
+        if (words.given | !ALLOWED) & slot_bit != 0 {
             return None;
         }
-        let (value, after) = parse_number(text, next + 1).ok()?;
-        if !matches!(text.get(after), None | Some(b' ' | b'\t')) {
-            return None;
-        }
-        values[slot] = Some(value);
+        let (value, after) = parse_number(bytes, pos + 1).ok()?;
+        *words.values.get_mut(usize::from(slot))? = value;
+        words.given |= slot_bit;
         pos = after;
-        end = after;
+        params_end = after;
     }
 }
 
@@ -879,6 +1094,31 @@ fn centre_offset_from_radius(
     Ok([dx / 2.0 - left * h * uy, dy / 2.0 + left * h * ux])
 }
 
+/// What an arc line gives besides the interpreter's state, once checked.
+struct ArcEnds {
+    target: Position,
+    centre: [f64; 2],
+    offset: [f64; 2],
+    clockwise: bool,
+    turns: u32,
+    speed: f64,
+    e_written: Option<f64>,
+}
+
+/// The XY centre at `offset` from `start`, when finite and as far from `target` as from `start`.
+fn checked_centre(
+    start: &Position,
+    target: &Position,
+    offset: [f64; 2],
+) -> Result<[f64; 2], ErrorKind> {
+    let centre = [start[0] + offset[0], start[1] + offset[1]];
+    if !(centre[0].is_finite() && centre[1].is_finite()) {
+        return Err(ErrorKind::NumberOverflow);
+    }
+    check_radii(start, target, &centre)?;
+    Ok(centre)
+}
+
 /// Radius at start and end must agree (within 0.005 mm or 0.1 %).
 fn check_radii(start: &Position, target: &Position, centre: &[f64; 2]) -> Result<(), ErrorKind> {
     let start_radius = (start[0] - centre[0]).hypot(start[1] - centre[1]);
@@ -901,8 +1141,9 @@ pub struct Commands<R> {
     interpreter: Interpreter,
     source: Arc<str>,
     finished: bool,
-    /// Plain moves take [`Interpreter::plain_move_line`] (off only in tests, to compare).
-    fast_moves: bool,
+    /// Plain moves, blank and comment-only lines take [`Interpreter::fast_line`] (off only in tests,
+    /// to compare).
+    fast_lines: bool,
 }
 
 impl<R: BufRead> Commands<R> {
@@ -913,7 +1154,7 @@ impl<R: BufRead> Commands<R> {
             interpreter: Interpreter::new(options),
             source,
             finished: false,
-            fast_moves: true,
+            fast_lines: true,
         }
     }
 
@@ -931,13 +1172,17 @@ impl<R: BufRead> Commands<R> {
             if self.finished {
                 return None;
             }
-            let interpreter = &mut self.interpreter;
-            if self.fast_moves
-                && let Some(command) = self
+            if self.fast_lines {
+                let interpreter = &mut self.interpreter;
+                let taken = self
                     .reader
-                    .take_line_with(|text, number| interpreter.plain_move_line(text, number))
-            {
-                return Some(Ok(command));
+                    .take_line_with(|bytes, number| interpreter.fast_line(bytes, number));
+                if taken.is_some() {
+                    match self.interpreter.fast_command.take() {
+                        Some(command) => return Some(Ok(command)),
+                        None => continue,
+                    }
+                }
             }
             match self.reader.next_line() {
                 None => {
@@ -991,6 +1236,7 @@ impl<R: BufRead> Iterator for Commands<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reader::ReaderOptions;
 
     fn run(text: &str) -> (Vec<Command>, Interpreter) {
         let mut commands = Commands::from_reader(text.as_bytes(), "t");
@@ -1222,9 +1468,14 @@ mod tests {
 
     /// Everything a stream gives, as text (`{:?}` tells `-0.0` from `0.0`): each command or error,
     /// the warnings, and the final state.
-    fn stream(text: &[u8], fast_moves: bool) -> String {
-        let mut commands = Commands::from_reader(text, "t");
-        commands.fast_moves = fast_moves;
+    fn stream(text: &[u8], fast_lines: bool) -> String {
+        stream_from(text, fast_lines)
+    }
+
+    /// [`stream`] from any input (a small `BufReader` splits lines across refills).
+    fn stream_from(input: impl BufRead, fast_lines: bool) -> String {
+        let mut commands = Commands::from_reader(input, "t");
+        commands.fast_lines = fast_lines;
         let out: Vec<_> = commands.by_ref().collect();
         let warnings = commands.take_warnings();
         let state = commands.interpreter();
@@ -1253,21 +1504,27 @@ mod tests {
                     proptest::sample::select(vec![
                         "G1", "G0", "g1", "G01", "G1.5", "G2", "G4", "M83", "M82", "G91", "G90",
                         "G92 E0", "G92 X1", "M221 S150", "M220 S50", "G20", "G21", "N5 G1", " G1",
-                        ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28",
+                        ";LAYER_CHANGE", ";Z:0.4", "", "G1 ;c", "G28", "; note", ";TIME_ELAPSED:5",
+                        ";TYPE:Perimeter", "  ; x", ";", "   ", "\t;c", "; caf\u{e9}", "; Z:1",
+                        "G2", "G3", "g2", "G2 I1", "G3 J-1", "G2 X2 I1", "G3 Y0 I-1 J0", "G18",
+                        "G17", ";LAYER:3", "; CHANGE_LAYER", "; Z_HEIGHT: 0.6", "; printing object a",
+                        ";TYPE:", "; feature skirt", ";Z:x", "G92", "g92 E-1", "G92.1", "G920",
                     ]),
                     proptest::collection::vec(
                         proptest::sample::select(vec![
                             " X1.5", " Y-2", " Z.3", " E0.0123", " E-1.25", " F1800", " F0", " F-5",
                             " X", " Q1", "X2", " x3", "\tY4", " E1e5", " X1.2.3", " ;c", " (p)",
                             " *12", "  ", " X+5", " X5.", " Y-.5", " F9e9", " X#", " E99999999999",
-                            " Z123456789012345678901234", " I1", " E",
+                            " Z123456789012345678901234", " I1", " E", " J1", " I-1", " J0", " R1",
+                            " P1", " I", " J.5",
                         ]),
                         0..5,
                     ),
                     proptest::sample::select(vec!["\n", "\r\n", "\r"]),
                 ),
                 0..12,
-            )
+            ),
+            capacity in 1usize..48,
         ) {
             let mut text = String::new();
             for (command, words, end) in &lines {
@@ -1277,7 +1534,52 @@ mod tests {
                 }
                 text.push_str(end);
             }
-            proptest::prop_assert_eq!(stream(text.as_bytes(), true), stream(text.as_bytes(), false));
+            let general = stream(text.as_bytes(), false);
+            proptest::prop_assert_eq!(&stream(text.as_bytes(), true), &general);
+            let small_buffer = std::io::BufReader::with_capacity(capacity, text.as_bytes());
+            proptest::prop_assert_eq!(&stream_from(small_buffer, true), &general);
+        }
+    }
+
+    #[test]
+    fn fast_path_gives_the_arcs_the_general_path_gives() {
+        let text = "G1 X10 Y0 F600\nG3 X0 Y10 I-10 J0 E1\nG2 X10 Y0 I0 J-10 F1200\nG3 X10 Y0 J5\n\
+                    G2 X0 Y0 I0 J0\nG2 X1 Y1 I1 I2\nG2 X1 Y1 I1 Q2\nG2 X5 Y5 I3\nM83\nM221 S90\n\
+                    G92 E0\nG3 X10 Y10 Z1 I-5 J5 E.5\nG20\nG2 X0 Y0 I.1 J.1\nG21\nG18\nG2 X1 I1\n\
+                    G17\nG91\nG2 X1 I1\nG90\n;LAYER_CHANGE\nG3 X0 Y0 I1 J1\n;Z:2\nG2 X0 Y0 I-1 F0\n";
+        assert_eq!(
+            stream(text.as_bytes(), true),
+            stream(text.as_bytes(), false)
+        );
+    }
+
+    #[test]
+    fn fast_path_gives_the_g92_the_general_path_gives() {
+        let huge = "9".repeat(308);
+        let text = format!(
+            "G1 X5 E3\nG92 E0\nG92\nM221 S50\nG92 E1 X2 Y3 Z4\nG20\nG92 X{huge}\nG92 E2 E3\n\
+             G92 F1\nG92 E\n;LAYER_CHANGE\nG92 E0\n"
+        );
+        assert_eq!(
+            stream(text.as_bytes(), true),
+            stream(text.as_bytes(), false)
+        );
+    }
+
+    #[test]
+    fn fast_path_keeps_comment_warnings_and_the_line_limit() {
+        let text =
+            b"G1 X1\n; caf\xe9\n  ;\xff\r\n;ok\n\nG1 X2 Y3 E4 F5\n; a longer comment line\nG1 X3\n";
+        assert_eq!(stream(text, true), stream(text, false));
+        assert!(stream(text, true).contains("LossyComment"));
+        for max_line_len in 0..24 {
+            let run = |fast_lines| {
+                let reader = Reader::with_options(&text[..], "t", ReaderOptions { max_line_len });
+                let mut commands = Commands::new(reader, InterpreterOptions::default());
+                commands.fast_lines = fast_lines;
+                format!("{:?}", commands.collect::<Vec<_>>())
+            };
+            assert_eq!(run(true), run(false), "max_line_len {max_line_len}");
         }
     }
 
@@ -1300,10 +1602,10 @@ mod tests {
     fn fast_path_keeps_io_errors() {
         let text = b"G1 X1\r\nG1 X2\rG1 X3\nG1 X4";
         for capacity in [4, 8, 64] {
-            let run = |fast_moves| {
+            let run = |fast_lines| {
                 let input = std::io::BufReader::with_capacity(capacity, FailingAfter(text));
                 let mut commands = Commands::from_reader(input, "t");
-                commands.fast_moves = fast_moves;
+                commands.fast_lines = fast_lines;
                 format!("{:?}", commands.collect::<Vec<_>>())
             };
             let fast = run(true);

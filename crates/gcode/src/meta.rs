@@ -17,10 +17,34 @@ pub enum CommentMeta {
     LayerZ(f64),
 }
 
+/// The bytes that may begin (after blanks) a comment [`comment_meta`] recognises.
+const META_FIRST_BYTES: &[u8] = b"LZTCFflBps'";
+
+/// [`META_FIRST_BYTES`] as a table, for one look-up per comment.
+const MAY_START_META: [bool; 256] = {
+    let mut table = [false; 256];
+    let mut i = 0;
+    while i < META_FIRST_BYTES.len() {
+        table[META_FIRST_BYTES[i] as usize] = true;
+        i += 1;
+    }
+    table
+};
+
+/// False when a comment whose text (after blanks) begins with `first` can hold no metadata: a
+/// quick test that lets the reader skip most comments without looking further.
+pub fn may_start_meta(first: u8) -> bool {
+    MAY_START_META[usize::from(first)]
+}
+
 /// Recognises metadata in a `;` comment's text (the text after `;`).
 pub fn comment_meta(text: &str) -> Option<CommentMeta> {
     let text = text.trim_start_matches([' ', '\t']);
-    match text.as_bytes().first()? {
+    let first = *text.as_bytes().first()?;
+    if !may_start_meta(first) {
+        return None;
+    }
+    match first {
         b'L' => layer_upper(text),
         b'Z' => layer_z(text),
         b'T' => text.strip_prefix("TYPE:").map(feature),

@@ -23,9 +23,10 @@ const POW10: [f64; 23] = [
 /// Largest mantissa for which the fast path is exact.
 const MAX_EXACT_MANTISSA: u64 = 1 << 53;
 
-#[inline]
 /// Parses the number starting at `bytes[start]`; returns the value and the index just past it.
 /// Stops at the first byte that cannot continue the number; the caller checks what follows.
+/// (Always inlined: it is the inner loop of the lexer's and of the fast path's word loops.)
+#[inline(always)]
 pub fn parse_number(bytes: &[u8], start: usize) -> Result<(f64, usize), NumberError> {
     let mut i = start;
     let negative = match bytes.get(i) {

@@ -35,6 +35,8 @@ pub struct Reader<R> {
     input: R,
     source: Arc<str>,
     options: ReaderOptions,
+    /// `max_line_len + 1`: the most bytes [`Self::take_line_with`] offers.
+    offer_len: usize,
     buf: Vec<u8>,
     lossy: String,
     tokens: LineTokens,
@@ -82,6 +84,7 @@ impl<R: BufRead> Reader<R> {
             input,
             source: source.into(),
             options,
+            offer_len: options.max_line_len.saturating_add(1),
             buf: Vec::with_capacity(256),
             lossy: String::new(),
             tokens: LineTokens::default(),
@@ -185,58 +188,43 @@ impl<R: BufRead> Reader<R> {
         }
     }
 
-    /// Offers the next line to `take` (its bytes without the line end, and its number) when it lies
-    /// in the input's buffer and is known to be UTF-8. The line is consumed when `take` gives
-    /// `Some`; otherwise nothing changes and [`Self::next_line`] reads it as usual.
-    pub(crate) fn take_line_with<T>(
+    /// Offers the buffered bytes from the next line's start to `take`, which reads the line itself
+    /// (one pass: no separate search for the line end, no UTF-8 check) and gives `Some(len)` when
+    /// it took the whole line: `len` bytes, then a `\n` or `\r` inside the offered bytes; the line
+    /// is then consumed. `take` must accept only UTF-8 lines and change nothing when it gives
+    /// `None`; the line is then read by [`Self::next_line`] as usual. At most `max_line_len + 1`
+    /// bytes are offered, so a line too long for `next_line` is never taken.
+    #[inline(always)]
+    pub(crate) fn take_line_with(
         &mut self,
-        take: impl FnOnce(&[u8], u64) -> Option<T>,
-    ) -> Option<T> {
+        take: impl FnOnce(&[u8], u64) -> Option<usize>,
+    ) -> Option<()> {
         if self.failed_io || self.pending_io_error.is_some() {
             return None;
         }
         self.consume_deferred();
-        let skip_lf = self.skip_lf;
-        let located = self
-            .locate_line()
-            .map_err(|err| self.pending_io_error = Some(err));
-        let Ok(Located::InBuffer {
-            start,
-            end,
-            consume,
-        }) = located
-        else {
-            self.skip_lf = skip_lf;
-            return None;
-        };
-        // The same bytes again, as in `next_line`.
-        let available = match self.input.fill_buf() {
-            Ok(available) if available.len() >= end => available,
-            other => {
-                let err = other
-                    .err()
-                    .unwrap_or_else(|| io::Error::other("input buffer changed"));
-                self.pending_io_error = Some(err);
-                self.skip_lf = skip_lf;
-                return None;
+        let available = loop {
+            match self.input.fill_buf() {
+                Ok(bytes) => break bytes,
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
+                Err(err) => {
+                    self.pending_io_error = Some(err);
+                    return None;
+                }
             }
         };
-        if end > self.utf8_checked {
-            self.utf8_checked = utf8_checked_up_to(available, start.max(self.utf8_checked), end);
-        }
-        let taken = if end <= self.utf8_checked {
-            take(&available[start..end], self.line + 1)
-        } else {
-            None
-        };
-        if taken.is_some() {
-            self.line += 1;
-            self.bytes_consumed += consume as u64;
-            self.deferred_consume = consume;
-        } else {
-            self.skip_lf = skip_lf;
-        }
-        taken
+        let start = usize::from(self.skip_lf && available.first() == Some(&b'\n'));
+        let offered_end = available.len().min(start.saturating_add(self.offer_len));
+        let len = take(available.get(start..offered_end)?, self.line + 1)?;
+        let end = start + len;
+        debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
+        self.skip_lf = available.get(end) == Some(&b'\r');
+        let consume = (end + 1).min(available.len());
+        self.input.consume(consume);
+        self.utf8_checked = self.utf8_checked.saturating_sub(consume);
+        self.line += 1;
+        self.bytes_consumed += consume as u64;
+        Some(())
     }
 
     /// Consumes the line handed out last.

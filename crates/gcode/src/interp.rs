@@ -914,7 +914,8 @@ fn skip_blanks(text: &[u8], pos: usize) -> usize {
 /// The values of a plain move's words, by slot (see [`SLOTS`]).
 #[derive(Default)]
 struct MoveWords {
-    values: [f64; 7],
+    /// (Eight, one more than the slots: a slot masked to 0..=7 indexes it without a bounds check.)
+    values: [f64; 8],
     /// Bit `slot` set when the word was given.
     given: u8,
 }
@@ -982,7 +983,7 @@ fn plain_move_words<const ALLOWED: u8>(
             return None;
         }
         let (value, after) = parse_number(bytes, pos + 1).ok()?;
-        *words.values.get_mut(usize::from(slot))? = value;
+        words.values[usize::from(slot & 7)] = value;
         words.given |= slot_bit;
         pos = after;
         params_end = after;

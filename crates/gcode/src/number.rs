@@ -176,6 +176,27 @@ mod tests {
         assert_eq!(parse_number(b"X-1 ", 1), Ok((-1.0, 3)));
     }
 
+    #[test]
+    fn digit_runs_of_either_parity_end_where_they_end() {
+        // Digits are read two a step: runs of odd and even length, followed by anything or
+        // by the end of the bytes.
+        for (text, value, end) in [
+            ("12.34Y", 12.34, 5),
+            ("123.4 ", 123.4, 5),
+            ("1234", 1234.0, 4),
+            ("12345", 12345.0, 5),
+            ("1.", 1.0, 2),
+            (".5", 0.5, 2),
+            ("9.99\n", 9.99, 4),
+        ] {
+            assert_eq!(
+                parse_number(text.as_bytes(), 0),
+                Ok((value, end)),
+                "{text:?}"
+            );
+        }
+    }
+
     proptest::proptest! {
         #[test]
         fn matches_std_for_any_decimal(int in "[0-9]{0,25}", frac in proptest::option::of("[0-9]{0,30}"), sign in "[-+]?") {

@@ -911,10 +911,11 @@ fn skip_blanks(text: &[u8], pos: usize) -> usize {
     pos + blanks
 }
 
-/// The values of a plain move's words, by slot (see [`SLOTS`]).
+/// The values of a plain move's words, by slot (see [`SLOT_BITS`]).
 #[derive(Default)]
 struct MoveWords {
-    values: [f64; 7],
+    /// (Eight, one more than the slots: a slot masked to 0..=7 indexes it without a bounds check.)
+    values: [f64; 8],
     /// Bit `slot` set when the word was given.
     given: u8,
 }
@@ -934,18 +935,15 @@ const J_SLOT: usize = 6;
 const LINEAR_SLOTS: u8 = 0b1_1111;
 const POSITION_SLOTS: u8 = 0b1111;
 const ARC_SLOTS: u8 = 0b111_1111;
-/// Not a plain-move letter.
-const NO_SLOT: u8 = u8::MAX;
-
-/// Slot of each byte that is a plain-move letter (X Y Z E F I J in either case), else
-/// [`NO_SLOT`]: one look-up per word.
-const SLOTS: [u8; 256] = {
-    let mut table = [NO_SLOT; 256];
+/// Bit of each byte that is a plain-move letter (X Y Z E F I J in either case): `1 << slot`, else
+/// 0. One look-up per word gives the bit to test and set, and the slot (its position).
+const SLOT_BITS: [u8; 256] = {
+    let mut table = [0; 256];
     let letters = *b"XYZEFIJ";
     let mut slot = 0;
     while slot < letters.len() {
-        table[letters[slot] as usize] = slot as u8;
-        table[letters[slot].to_ascii_lowercase() as usize] = slot as u8;
+        table[letters[slot] as usize] = 1 << slot;
+        table[letters[slot].to_ascii_lowercase() as usize] = 1 << slot;
         slot += 1;
     }
     table
@@ -973,16 +971,15 @@ fn plain_move_words<const ALLOWED: u8>(
             pos += 1;
         }
         let letter = *bytes.get(pos)?;
-        let slot = SLOTS[usize::from(letter)];
-        if slot == NO_SLOT {
+        let slot_bit = SLOT_BITS[usize::from(letter)];
+        if slot_bit == 0 {
             return matches!(letter, b'\n' | b'\r').then_some((words, params_end, pos));
         }
-        let slot_bit = 1 << slot;
         if (words.given | !ALLOWED) & slot_bit != 0 {
             return None;
         }
         let (value, after) = parse_number(bytes, pos + 1).ok()?;
-        *words.values.get_mut(usize::from(slot))? = value;
+        words.values[slot_bit.trailing_zeros() as usize & 7] = value;
         words.given |= slot_bit;
         pos = after;
         params_end = after;

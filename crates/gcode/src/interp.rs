@@ -369,14 +369,20 @@ impl Interpreter {
     fn linear_move(&mut self, line: &Line<'_>, rapid: bool) -> Result<Move, Fail> {
         let (target, named, feed) = self.target(line, XYZEF)?;
         let speed = self.feed(feed)?;
+        Ok(self.move_to(target, named, speed, rapid))
+    }
+
+    /// The move to `target` at `speed` (mm/s), which becomes the modal position and speed.
+    #[inline(always)]
+    fn move_to(&mut self, target: Position, named: [bool; 4], speed: f64, rapid: bool) -> Move {
         self.last = target;
         self.speed = speed;
-        Ok(Move {
+        Move {
             target,
             named,
             feed: speed,
             rapid,
-        })
+        }
     }
 
     /// New machine position from X Y Z E words (not yet committed) and the F word, in one pass over
@@ -595,14 +601,7 @@ impl Interpreter {
     fn plain_linear_move(&mut self, words: &MoveWords, rapid: bool) -> Option<Move> {
         let (target, named) = self.plain_target(words)?;
         let speed = self.plain_speed(words)?;
-        self.last = target;
-        self.speed = speed;
-        Some(Move {
-            target,
-            named,
-            feed: speed,
-            rapid,
-        })
+        Some(self.move_to(target, named, speed, rapid))
     }
 
     /// [`Self::arc`] for the words of a plain line with I or J; `None` where that would fail.

@@ -254,6 +254,15 @@ enum Slot {
     Extruder,
 }
 
+/// A motor thread's error and the number of the message it failed on. Every motor receives every message up
+/// to the first failure, so the earliest failure (then the first motor in sink order) is the error the
+/// sequential [`StepPipeline`] reports, whichever thread happened to fail first.
+#[derive(Debug)]
+struct MotorFailure {
+    message: usize,
+    error: StepError,
+}
+
 /// One motor's stepping thread: its stepper (from the first declared position on), its sink and totals.
 struct MotorThread<'k, S> {
     kin: &'k dyn Kinematics,
@@ -272,14 +281,18 @@ impl<S: StepSink> MotorThread<'_, S> {
         mut self,
         messages: Receiver<Message>,
         cancelled: fn() -> bool,
-    ) -> Result<(S, u64), StepError> {
-        for message in messages {
+    ) -> Result<(S, u64), MotorFailure> {
+        for (index, message) in messages.into_iter().enumerate() {
+            let fail = |error| MotorFailure {
+                message: index,
+                error,
+            };
             if cancelled() {
-                return Err(StepError::Cancelled);
+                return Err(fail(StepError::Cancelled));
             }
             match message {
-                Message::Chunk(chunk) => self.step_chunk(&chunk)?,
-                Message::SetPosition { xyz, e } => self.restart(xyz, e)?,
+                Message::Chunk(chunk) => self.step_chunk(&chunk).map_err(fail)?,
+                Message::SetPosition { xyz, e } => self.restart(xyz, e).map_err(fail)?,
             }
         }
         self.finish_stepper();
@@ -330,8 +343,8 @@ impl<S: StepSink> MotorThread<'_, S> {
 /// the motors wait for more) on this thread while every motor steps on a thread of its own, chunk by chunk:
 /// planning and the motors overlap, and no motor waits for another (there is no barrier per chunk, so the
 /// operating system keeps the cores busy with whichever threads have work). Returns what `produce` returned,
-/// the sinks and each motor's count of filtered step pairs. The output is the same as [`StepPipeline`]'s;
-/// when motors fail, the error of the first in sink order is reported.
+/// the sinks and each motor's count of filtered step pairs. The output is the same as [`StepPipeline`]'s,
+/// and so is the error when motors fail (the earliest failure, then the first motor in sink order).
 ///
 /// `cancelled` is polled between chunks: when it turns true, the motors drop the work still queued and the
 /// call fails with [`StepError::Cancelled`] (e.g. on Ctrl-C, so partial output is discarded quickly).
@@ -396,18 +409,29 @@ where
                     sinks.push(sink);
                     filtered.push(pairs);
                 }
-                Ok(Err(e)) => {
-                    first_error.get_or_insert(e);
-                }
-                Err(_) => {
-                    first_error
-                        .get_or_insert(StepError::Config("a stepping thread panicked".into()));
-                }
+                Ok(Err(failure)) => keep_earliest(&mut first_error, failure),
+                Err(_) => keep_earliest(
+                    &mut first_error,
+                    MotorFailure {
+                        message: 0,
+                        error: StepError::Config("a stepping thread panicked".into()),
+                    },
+                ),
             }
         }
         match first_error {
-            Some(e) => Err(e),
+            Some(failure) => Err(failure.error),
             None => Ok((produced, sinks, filtered)),
         }
     })
+}
+
+/// Keep `failure` if it happened before the one kept so far (on a tie, the one kept comes first in sink order).
+fn keep_earliest(kept: &mut Option<MotorFailure>, failure: MotorFailure) {
+    if kept
+        .as_ref()
+        .is_none_or(|first| failure.message < first.message)
+    {
+        *kept = Some(failure);
+    }
 }

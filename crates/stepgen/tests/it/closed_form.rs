@@ -500,3 +500,53 @@ fn threaded_pipeline_reports_moves_before_a_declared_position() {
     );
     assert!(matches!(cancelled, Err(StepError::Cancelled)));
 }
+
+/// Motors failing at different points: the threaded pipeline reports the earliest failure, as the sequential
+/// one does, however the threads happen to be scheduled.
+#[test]
+fn threaded_pipeline_reports_the_earliest_failure() {
+    use trapq::MoveSink;
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let extruder = ExtruderSpec {
+        name: "extruder".into(),
+        step_distance: 0.002,
+        start_position: 0.0,
+    };
+    let feed = |sink: &mut dyn MoveSink| {
+        sink.set_position([0.0; 3], 0.0);
+        // Only the extruder fails here (its piece starts at a non-finite position)…
+        sink.append(
+            Queue::Extruder,
+            &cruise(1.0, 0.1, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], 1.0),
+        );
+        sink.set_position([0.0; 3], 0.0);
+        // …and the toolhead motors only later.
+        sink.append(
+            Queue::Toolhead,
+            &cruise(2.0, 0.1, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0),
+        );
+    };
+    let mut sequential = stepgen::StepPipeline::new(
+        kin.as_ref(),
+        Some(extruder.clone()),
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 4],
+    );
+    feed(&mut sequential);
+    let expected = sequential
+        .finish()
+        .expect_err("the extruder fails")
+        .to_string();
+    assert!(expected.contains("extruder"), "{expected}");
+    for _ in 0..20 {
+        let threaded = stepgen::run_in_parallel(
+            kin.as_ref(),
+            Some(extruder.clone()),
+            StepGenConfig::default(),
+            vec![Vec::<Step>::new(); 4],
+            || false,
+            |mut sender| feed(&mut sender),
+        );
+        assert_eq!(threaded.expect_err("fails").to_string(), expected);
+    }
+}

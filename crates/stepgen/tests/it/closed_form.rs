@@ -412,6 +412,34 @@ fn star_of_moves() -> Vec<(Queue, TrapezoidMove)> {
     moves
 }
 
+/// Steps of four motors and their filtered pairs, or the error.
+type PipelineResult = Result<(Vec<Vec<Step>>, Vec<u64>), StepError>;
+
+/// `feed` through the sequential [`stepgen::StepPipeline`] and through [`stepgen::run_in_parallel`].
+fn sequential_and_threaded(
+    kin: &dyn Kinematics,
+    extruder: &ExtruderSpec,
+    feed: impl Fn(&mut dyn trapq::MoveSink),
+) -> (PipelineResult, PipelineResult) {
+    let mut sequential = stepgen::StepPipeline::new(
+        kin,
+        Some(extruder.clone()),
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 4],
+    );
+    feed(&mut sequential);
+    let threaded = stepgen::run_in_parallel(
+        kin,
+        Some(extruder.clone()),
+        StepGenConfig::default(),
+        vec![Vec::<Step>::new(); 4],
+        || false,
+        |mut sender| feed(&mut sender),
+    )
+    .map(|((), steps, pairs)| (steps, pairs));
+    (sequential.finish(), threaded)
+}
+
 #[test]
 fn threaded_pipeline_gives_the_sequential_pipelines_steps() {
     use trapq::MoveSink;
@@ -438,23 +466,9 @@ fn threaded_pipeline_gives_the_sequential_pipelines_steps() {
             sink.append(*queue, mv);
         }
     };
-    let mut sequential = stepgen::StepPipeline::new(
-        kin.as_ref(),
-        Some(extruder.clone()),
-        StepGenConfig::default(),
-        vec![Vec::<Step>::new(); 4],
-    );
-    feed(&mut sequential);
-    let (expected, expected_pairs) = sequential.finish().expect("sequential steps");
-    let ((), threaded, pairs) = stepgen::run_in_parallel(
-        kin.as_ref(),
-        Some(extruder),
-        StepGenConfig::default(),
-        vec![Vec::<Step>::new(); 4],
-        || false,
-        |mut sender| feed(&mut sender),
-    )
-    .expect("threaded steps");
+    let (sequential, threaded) = sequential_and_threaded(kin.as_ref(), &extruder, feed);
+    let (expected, expected_pairs) = sequential.expect("sequential steps");
+    let (threaded, pairs) = threaded.expect("threaded steps");
     assert!(
         expected[0].len() > 100_000,
         "bed steps {}",
@@ -526,27 +540,10 @@ fn threaded_pipeline_reports_the_earliest_failure() {
             &cruise(2.0, 0.1, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0),
         );
     };
-    let mut sequential = stepgen::StepPipeline::new(
-        kin.as_ref(),
-        Some(extruder.clone()),
-        StepGenConfig::default(),
-        vec![Vec::<Step>::new(); 4],
-    );
-    feed(&mut sequential);
-    let expected = sequential
-        .finish()
-        .expect_err("the extruder fails")
-        .to_string();
-    assert!(expected.contains("extruder"), "{expected}");
     for _ in 0..20 {
-        let threaded = stepgen::run_in_parallel(
-            kin.as_ref(),
-            Some(extruder.clone()),
-            StepGenConfig::default(),
-            vec![Vec::<Step>::new(); 4],
-            || false,
-            |mut sender| feed(&mut sender),
-        );
+        let (sequential, threaded) = sequential_and_threaded(kin.as_ref(), &extruder, feed);
+        let expected = sequential.expect_err("the extruder fails").to_string();
+        assert!(expected.contains("extruder"), "{expected}");
         assert_eq!(threaded.expect_err("fails").to_string(), expected);
     }
 }

@@ -63,7 +63,9 @@ pub enum ConfigError {
         message: String,
     },
 
-    #[error("{span}: unsupported kinematics '{name}' (supported: cartesian, polar, scara)")]
+    #[error(
+        "{span}: unsupported kinematics '{name}' (supported: cartesian, polar, scara, jointspace_polar, jointspace_scara)"
+    )]
     UnsupportedKinematics { span: Box<Span>, name: String },
 
     #[error("{span}: section [{section}]: {message}")]

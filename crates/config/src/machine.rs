@@ -277,8 +277,9 @@ fn read_kinematics_kind(printer: &Section) -> Result<KinematicsKind, ConfigError
     let name = printer.get_str("kinematics")?.trim().to_lowercase();
     match name.as_str() {
         "cartesian" => Ok(KinematicsKind::Cartesian),
-        "polar" => Ok(KinematicsKind::Polar),
-        "scara" => Ok(KinematicsKind::Scara),
+        // The names the Klipper/Kalico plug-in registers, so one printer.cfg serves the printer and the CLI.
+        "polar" | "jointspace_polar" => Ok(KinematicsKind::Polar),
+        "scara" | "jointspace_scara" => Ok(KinematicsKind::Scara),
         _ => Err(ConfigError::UnsupportedKinematics {
             span: Box::new(
                 printer

@@ -59,53 +59,23 @@ impl Polar {
 
     /// True when neither assembly offset is set (Klipper's machine, closed-form motor maps).
     pub fn is_ideal(&self) -> bool {
-        self.params.arm_zero_offset == 0.0 && self.params.arm_lateral_offset == 0.0
+        self.geometry().is_ideal()
     }
 
-    /// `(bed angle in (−π, π], arm position)` for the XY point, or why there is none.
+    /// The assembly offsets alone (for callers that compute many points without the limits).
+    pub fn geometry(&self) -> PolarGeometry {
+        PolarGeometry {
+            arm_zero_offset: self.params.arm_zero_offset,
+            arm_lateral_offset: self.params.arm_lateral_offset,
+        }
+    }
+
     fn bed_and_arm(&self, x: f64, y: f64) -> Result<(f64, f64), ReachError> {
-        let s = self.along_arm(x, y)?;
-        let (dx, dy) = (self.params.arm_zero_offset, self.params.arm_lateral_offset);
-        if self.is_ideal() {
-            // Klipper's exact expressions, so step times match bit for bit.
-            return Ok((y.atan2(x), s));
-        }
-        // dx + r = s exactly in real arithmetic; use s to avoid a rounding step.
-        let bed = y.atan2(x) - dy.atan2(s);
-        let bed = if bed > std::f64::consts::PI {
-            bed - std::f64::consts::TAU
-        } else {
-            bed
-        };
-        let bed = if bed <= -std::f64::consts::PI {
-            bed + std::f64::consts::TAU
-        } else {
-            bed
-        };
-        Ok((bed, s - dx))
+        self.geometry().bed_and_arm(x, y)
     }
 
-    /// Distance of the XY point along the arm's line from the point of that line nearest the centre (the arm
-    /// position plus `arm_zero_offset`), or why the arm cannot reach it. No angle: limit checks need none.
     fn along_arm(&self, x: f64, y: f64) -> Result<f64, ReachError> {
-        let dy = self.params.arm_lateral_offset;
-        if dy == 0.0 && x == 0.0 && y == 0.0 {
-            return Err(ReachError::AtCentre { x, y });
-        }
-        let rho2 = x * x + y * y;
-        if dy == 0.0 {
-            return Ok(rho2.sqrt());
-        }
-        let s2 = rho2 - dy * dy;
-        if s2 < 0.0 {
-            return Err(ReachError::InsideMinimumRadius {
-                x,
-                y,
-                distance: rho2.sqrt(),
-                min: dy.abs(),
-            });
-        }
-        Ok(s2.sqrt())
+        self.geometry().along_arm(x, y)
     }
 
     fn check_limits(&self, p: Vec3) -> Result<(), ReachError> {
@@ -173,16 +143,8 @@ impl Kinematics for Polar {
             [b, a, z, ..] if b.is_finite() && a.is_finite() && z.is_finite() => [*b, *a, *z],
             _ => return Err(ReachError::NotFinite),
         };
-        if self.is_ideal() {
-            return Ok([bed.cos() * arm, bed.sin() * arm, z]);
-        }
-        // p = Rot(θ)·(dx + r, dy)
-        let (nx, ny) = (
-            self.params.arm_zero_offset + arm,
-            self.params.arm_lateral_offset,
-        );
-        let (s, c) = bed.sin_cos();
-        Ok([c * nx - s * ny, s * nx + c * ny, z])
+        let (x, y) = self.geometry().forward(bed, arm);
+        Ok([x, y, z])
     }
 
     fn jacobian(&self, p: Vec3, rows: &mut [Vec3]) -> Result<(), ReachError> {
@@ -249,6 +211,78 @@ impl Kinematics for Polar {
             return Err(first_failure(t_near, 1.0, reason, at));
         }
         Ok(())
+    }
+}
+
+/// A polar machine's assembly offsets: everything a point's bed angle and arm position depend on. Plain `Copy`
+/// data with no allocation, so a step-time callback (the Klipper plug-in's) can carry it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PolarGeometry {
+    pub arm_zero_offset: f64,
+    pub arm_lateral_offset: f64,
+}
+
+impl PolarGeometry {
+    /// True when neither offset is set (Klipper's machine).
+    pub fn is_ideal(&self) -> bool {
+        self.arm_zero_offset == 0.0 && self.arm_lateral_offset == 0.0
+    }
+
+    /// Nozzle XY on the bed for a bed angle and an arm position: `p = Rot(θ)·(dx + r, dy)`.
+    pub fn forward(&self, bed: f64, arm: f64) -> (f64, f64) {
+        if self.is_ideal() {
+            // Klipper's expressions (polar.py's calc_position).
+            return (bed.cos() * arm, bed.sin() * arm);
+        }
+        let (nx, ny) = (self.arm_zero_offset + arm, self.arm_lateral_offset);
+        let (s, c) = bed.sin_cos();
+        (c * nx - s * ny, s * nx + c * ny)
+    }
+
+    /// `(bed angle in (−π, π], arm position)` for the XY point, or why there is none.
+    pub fn bed_and_arm(&self, x: f64, y: f64) -> Result<(f64, f64), ReachError> {
+        let s = self.along_arm(x, y)?;
+        let (dx, dy) = (self.arm_zero_offset, self.arm_lateral_offset);
+        if self.is_ideal() {
+            // Klipper's exact expressions, so step times match bit for bit.
+            return Ok((y.atan2(x), s));
+        }
+        // dx + r = s exactly in real arithmetic; use s to avoid a rounding step.
+        let bed = y.atan2(x) - dy.atan2(s);
+        let bed = if bed > std::f64::consts::PI {
+            bed - std::f64::consts::TAU
+        } else {
+            bed
+        };
+        let bed = if bed <= -std::f64::consts::PI {
+            bed + std::f64::consts::TAU
+        } else {
+            bed
+        };
+        Ok((bed, s - dx))
+    }
+
+    /// Distance of the XY point along the arm's line from the point of that line nearest the centre (the arm
+    /// position plus `arm_zero_offset`), or why the arm cannot reach it. No angle: limit checks need none.
+    pub fn along_arm(&self, x: f64, y: f64) -> Result<f64, ReachError> {
+        let dy = self.arm_lateral_offset;
+        if dy == 0.0 && x == 0.0 && y == 0.0 {
+            return Err(ReachError::AtCentre { x, y });
+        }
+        let rho2 = x * x + y * y;
+        if dy == 0.0 {
+            return Ok(rho2.sqrt());
+        }
+        let s2 = rho2 - dy * dy;
+        if s2 < 0.0 {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance: rho2.sqrt(),
+                min: dy.abs(),
+            });
+        }
+        Ok(s2.sqrt())
     }
 }
 

@@ -40,7 +40,24 @@ pub const SEGMENT_MAX_SAMPLES: usize = 1024;
 #[derive(Debug, Clone)]
 pub struct Scara {
     params: ScaraParams,
+    geometry: ScaraGeometry,
     motors: Vec<Motor>,
+}
+
+/// The arm's geometry and motor coupling: everything a point's joint angles and motor positions depend on.
+/// Plain `Copy` data with no allocation, so a step-time callback (the Klipper plug-in's) can carry it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaraGeometry {
+    link1_length: f64,
+    link2_length: f64,
+    offset_x: f64,
+    offset_y: f64,
+    elbow_coupling: f64,
+    ecr: Option<f64>,
+    elbow: ElbowBranch,
+    frame: ScaraFrame,
+    shoulder_zero: f64,
+    elbow_zero: f64,
     fekt_cos_quirk: bool,
 }
 
@@ -100,18 +117,36 @@ impl Scara {
             motor_from(&params.elbow_stepper, MotorUnit::Rad)?,
             motor_from(&params.z, MotorUnit::Mm)?,
         ];
+        let geometry = ScaraGeometry {
+            link1_length: params.link1_length,
+            link2_length: params.link2_length,
+            offset_x: params.offset_x,
+            offset_y: params.offset_y,
+            elbow_coupling: params.elbow_coupling,
+            ecr: params.ecr,
+            elbow: params.elbow,
+            frame: params.frame,
+            shoulder_zero: params.shoulder_zero,
+            elbow_zero: params.elbow_zero,
+            fekt_cos_quirk: false,
+        };
         Ok(Self {
             params,
+            geometry,
             motors,
-            fekt_cos_quirk: false,
         })
     }
 
     /// Replicates the FEKT fork's quirk: where `|cos q2| < 1e-9` it uses `q2 = acos(1e-6)` instead of
     /// `acos(cos q2)` (a ~1e-6 rad jump at right-angle elbows). Only for bit-exact comparisons with its output.
     pub fn with_fekt_cos_quirk(mut self, on: bool) -> Self {
-        self.fekt_cos_quirk = on;
+        self.geometry.fekt_cos_quirk = on;
         self
+    }
+
+    /// The geometry alone (for callers that compute many points without the limits).
+    pub fn geometry(&self) -> ScaraGeometry {
+        self.geometry
     }
 
     pub fn params(&self) -> &ScaraParams {
@@ -145,85 +180,25 @@ impl Scara {
         ((mid - span).max(0.0).sqrt(), (mid + span).sqrt())
     }
 
-    /// Arm-frame coordinates `(u, v)` of a bed point.
-    fn arm_frame(&self, x: f64, y: f64) -> (f64, f64) {
-        let (u, v) = (x - self.params.offset_x, y - self.params.offset_y);
-        match self.params.frame {
-            ScaraFrame::Standard => (u, v),
-            ScaraFrame::XScara => (v, u),
-        }
-    }
-
-    fn bed_frame(&self, u: f64, v: f64) -> (f64, f64) {
-        let (a, b) = match self.params.frame {
-            ScaraFrame::Standard => (u, v),
-            ScaraFrame::XScara => (v, u),
-        };
-        (a + self.params.offset_x, b + self.params.offset_y)
-    }
-
-    /// Joint angles for an XY point on the configured branch, `q1` normalised to `(−π, π]` (the difference
-    /// of two `atan2` can leave that range; inside it the value is bit-identical to the fork's expression).
+    /// Joint angles for an XY point on the configured branch (see [`ScaraGeometry::joints`]).
     pub fn joints(&self, x: f64, y: f64) -> Result<Joints, ReachError> {
-        let (u, v) = self.arm_frame(x, y);
-        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
-        let cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
-        if cos_q2 > 1.0 {
-            return Err(ReachError::OutOfReach {
-                x,
-                y,
-                distance: (u * u + v * v).sqrt(),
-                max: l1 + l2,
-            });
-        }
-        if cos_q2 < -1.0 {
-            return Err(ReachError::InsideMinimumRadius {
-                x,
-                y,
-                distance: (u * u + v * v).sqrt(),
-                min: (l1 - l2).abs(),
-            });
-        }
-        if cos_q2.is_nan() {
-            return Err(ReachError::NotFinite);
-        }
-        let used_cos = if self.fekt_cos_quirk && cos_q2.abs() < 1e-9 {
-            1e-6
-        } else {
-            cos_q2
-        };
-        let q2 = match self.params.elbow {
-            ElbowBranch::Left => used_cos.acos(),
-            ElbowBranch::Right => -used_cos.acos(),
-        };
-        let q1 = v.atan2(u) - (l2 * q2.sin()).atan2(l1 + l2 * q2.cos());
-        Ok(Joints {
-            q1: normalise(q1),
-            q2,
-        })
-    }
-
-    /// `c·q1`, as a division when `ecr` was configured (the fork's exact arithmetic).
-    fn coupling(&self, q1: f64) -> f64 {
-        match self.params.ecr {
-            Some(ecr) => q1 / ecr,
-            None => self.params.elbow_coupling * q1,
-        }
-    }
-
-    fn motors_from_joints(&self, j: Joints, z: f64, motors: &mut [f64]) {
-        let a = j.q1 + self.params.shoulder_zero;
-        let b = j.q2 + self.coupling(j.q1) + self.params.elbow_zero;
-        for (m, v) in motors.iter_mut().zip([a, b, z]) {
-            *m = v;
-        }
+        self.geometry.joints(x, y)
     }
 
     /// Joint angles from motor positions.
     pub fn joints_from_motors(&self, a: f64, b: f64) -> Joints {
-        let q1 = a - self.params.shoulder_zero;
-        let q2 = b - self.params.elbow_zero - self.coupling(q1);
-        Joints { q1, q2 }
+        self.geometry.joints_from_motors(a, b)
+    }
+
+    fn arm_frame(&self, x: f64, y: f64) -> (f64, f64) {
+        self.geometry.arm_frame(x, y)
+    }
+
+    fn motors_from_joints(&self, j: Joints, z: f64, motors: &mut [f64]) {
+        let (a, b) = self.geometry.motors_from_joints(j);
+        for (m, v) in motors.iter_mut().zip([a, b, z]) {
+            *m = v;
+        }
     }
 
     /// Soft limits of one point with known joint angles (q1 as it would be commanded).
@@ -384,6 +359,97 @@ impl Scara {
 }
 
 /// Angle in `(−π, π]`.
+impl ScaraGeometry {
+    /// Arm-frame coordinates `(u, v)` of a bed point.
+    pub fn arm_frame(&self, x: f64, y: f64) -> (f64, f64) {
+        let (u, v) = (x - self.offset_x, y - self.offset_y);
+        match self.frame {
+            ScaraFrame::Standard => (u, v),
+            ScaraFrame::XScara => (v, u),
+        }
+    }
+
+    pub fn bed_frame(&self, u: f64, v: f64) -> (f64, f64) {
+        let (a, b) = match self.frame {
+            ScaraFrame::Standard => (u, v),
+            ScaraFrame::XScara => (v, u),
+        };
+        (a + self.offset_x, b + self.offset_y)
+    }
+
+    /// Joint angles for an XY point on the configured branch, `q1` normalised to `(−π, π]` (the difference
+    /// of two `atan2` can leave that range; inside it the value is bit-identical to the fork's expression).
+    pub fn joints(&self, x: f64, y: f64) -> Result<Joints, ReachError> {
+        let (u, v) = self.arm_frame(x, y);
+        let (l1, l2) = (self.link1_length, self.link2_length);
+        let cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+        if cos_q2 > 1.0 {
+            return Err(ReachError::OutOfReach {
+                x,
+                y,
+                distance: (u * u + v * v).sqrt(),
+                max: l1 + l2,
+            });
+        }
+        if cos_q2 < -1.0 {
+            return Err(ReachError::InsideMinimumRadius {
+                x,
+                y,
+                distance: (u * u + v * v).sqrt(),
+                min: (l1 - l2).abs(),
+            });
+        }
+        if cos_q2.is_nan() {
+            return Err(ReachError::NotFinite);
+        }
+        let used_cos = if self.fekt_cos_quirk && cos_q2.abs() < 1e-9 {
+            1e-6
+        } else {
+            cos_q2
+        };
+        let q2 = match self.elbow {
+            ElbowBranch::Left => used_cos.acos(),
+            ElbowBranch::Right => -used_cos.acos(),
+        };
+        let q1 = v.atan2(u) - (l2 * q2.sin()).atan2(l1 + l2 * q2.cos());
+        Ok(Joints {
+            q1: normalise(q1),
+            q2,
+        })
+    }
+
+    /// `c·q1`, as a division when `ecr` was configured (the fork's exact arithmetic).
+    pub fn coupling(&self, q1: f64) -> f64 {
+        match self.ecr {
+            Some(ecr) => q1 / ecr,
+            None => self.elbow_coupling * q1,
+        }
+    }
+
+    /// Motor positions `(stepper_a, stepper_b)` of a pose.
+    pub fn motors_from_joints(&self, j: Joints) -> (f64, f64) {
+        let a = j.q1 + self.shoulder_zero;
+        let b = j.q2 + self.coupling(j.q1) + self.elbow_zero;
+        (a, b)
+    }
+
+    /// Joint angles from motor positions.
+    pub fn joints_from_motors(&self, a: f64, b: f64) -> Joints {
+        let q1 = a - self.shoulder_zero;
+        let q2 = b - self.elbow_zero - self.coupling(q1);
+        Joints { q1, q2 }
+    }
+
+    /// Nozzle XY of motor positions `(stepper_a, stepper_b)`.
+    pub fn forward(&self, a: f64, b: f64) -> (f64, f64) {
+        let Joints { q1, q2 } = self.joints_from_motors(a, b);
+        let (l1, l2) = (self.link1_length, self.link2_length);
+        let u = l1 * q1.cos() + l2 * (q1 + q2).cos();
+        let v = l1 * q1.sin() + l2 * (q1 + q2).sin();
+        self.bed_frame(u, v)
+    }
+}
+
 fn normalise(a: f64) -> f64 {
     if a > PI {
         a - TAU
@@ -441,11 +507,7 @@ impl Kinematics for Scara {
             [a, b, z, ..] if a.is_finite() && b.is_finite() && z.is_finite() => [*a, *b, *z],
             _ => return Err(ReachError::NotFinite),
         };
-        let Joints { q1, q2 } = self.joints_from_motors(a, b);
-        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
-        let u = l1 * q1.cos() + l2 * (q1 + q2).cos();
-        let v = l1 * q1.sin() + l2 * (q1 + q2).sin();
-        let (x, y) = self.bed_frame(u, v);
+        let (x, y) = self.geometry.forward(a, b);
         Ok([x, y, z])
     }
 

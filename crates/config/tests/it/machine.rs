@@ -429,3 +429,22 @@ fn extreme_values_are_refused_instead_of_producing_inf_or_nan() {
     let tiny_ecr = scara("ecr: 1e-320");
     assert_eq!(place(&error(&tiny_ecr)).2, "1e-320");
 }
+
+#[test]
+fn plugin_kinematics_names_load_the_same_machines() {
+    // One printer.cfg serves the Klipper plug-in and the CLI: its names mean the same machines.
+    for (ours, plain) in [
+        (
+            polar("").replace("kinematics: polar", "kinematics: jointspace_polar"),
+            polar(""),
+        ),
+        (
+            scara("ecr: 3").replace("kinematics: scara", "kinematics: jointspace_scara"),
+            scara("ecr: 3"),
+        ),
+    ] {
+        let (a, b) = (machine(&ours), machine(&plain));
+        assert_eq!(a.kinematics, b.kinematics);
+        assert_eq!(a.params, b.params);
+    }
+}

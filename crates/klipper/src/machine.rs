@@ -1,0 +1,184 @@
+//! One machine, built from the printer.cfg text the Python side hands over, and the questions Klipper's
+//! kinematics class asks of it: which solver each stepper gets, forward kinematics, whether a move can be made
+//! and how fast, the pose to report. The machine is built by the `config` crate exactly as the `jointspace`
+//! command line builds it, so one printer.cfg means the same machine in both.
+
+use std::ffi::{CStr, CString};
+
+use config::MachineConfig;
+use kinematics::polar::Polar;
+use kinematics::scara::Scara;
+use kinematics::{Kinematics, MachineParams, MotorMap, ReachError};
+use motion::kinematic_limits::{MotorLimit, split};
+use motion::machine::MachineSetup;
+
+use crate::stepper::Solver;
+
+/// A machine as the Klipper plug-in uses it. Immutable once built.
+#[derive(Debug)]
+pub struct Machine {
+    setup: MachineSetup,
+    shape: Shape,
+    /// The kinematics' motors, in their order, as C strings for the Python side.
+    motor_names: Vec<CString>,
+    /// `section key` lines of every config key the machine read (Klipper refuses keys nobody read).
+    read_keys: CString,
+    /// SCARA `home_position` (FEKT-SCARA's declared pose), if configured.
+    declared_home: Option<[f64; 3]>,
+}
+
+/// The machine's own type, for what only it knows (its solvers' geometry, its reach).
+#[derive(Debug)]
+enum Shape {
+    Cartesian,
+    Polar(Box<Polar>),
+    Scara(Box<Scara>),
+}
+
+/// What a move may do, for Klipper's `check_move`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MoveVerdict {
+    /// No motor limit binds anywhere on the move.
+    Free,
+    /// The whole move must stay within this cruise speed (mm/s) and acceleration (mm/s²).
+    Limited { speed: f64, accel: f64 },
+}
+
+impl Machine {
+    /// Builds the machine from printer.cfg text (only the sections it needs; includes are already resolved).
+    pub fn from_config_text(text: &str) -> Result<Machine, String> {
+        let config =
+            MachineConfig::from_str(text, "printer.cfg").map_err(|e| format!("config: {e}"))?;
+        let setup = MachineSetup::from_config(&config).map_err(|e| e.to_string())?;
+        let motor_names = setup
+            .kinematics
+            .motors()
+            .iter()
+            .map(|m| CString::new(m.name.as_str()).map_err(|e| e.to_string()))
+            .collect::<Result<_, _>>()?;
+        let declared_home = config.home_position.as_ref().and_then(|p| match p[..] {
+            [x, y] => Some([x, y, 0.0]),
+            [x, y, z, ..] => Some([x, y, z]),
+            _ => None,
+        });
+        let shape = match &config.params {
+            MachineParams::Cartesian(_) => Shape::Cartesian,
+            MachineParams::Polar(p) => {
+                Shape::Polar(Box::new(Polar::new(p.clone()).map_err(|e| e.to_string())?))
+            }
+            MachineParams::Scara(p) => {
+                Shape::Scara(Box::new(Scara::new(p.clone()).map_err(|e| e.to_string())?))
+            }
+        };
+        Ok(Machine {
+            read_keys: read_keys(&config)?,
+            shape,
+            setup,
+            motor_names,
+            declared_home,
+        })
+    }
+
+    pub fn kinematics(&self) -> &dyn Kinematics {
+        self.setup.kinematics.as_ref()
+    }
+
+    pub fn motor_names(&self) -> &[CString] {
+        &self.motor_names
+    }
+
+    pub fn read_keys(&self) -> &CStr {
+        &self.read_keys
+    }
+
+    pub fn declared_home(&self) -> Option<[f64; 3]> {
+        self.declared_home
+    }
+
+    /// The step-time solver of the motor configured in section `name`, or `None` if it is not one of this
+    /// machine's motors.
+    pub fn solver(&self, name: &str) -> Option<Solver> {
+        let kin = self.kinematics();
+        let index = kin.motors().iter().position(|m| m.name == name)?;
+        let solver = match (kin.motor_map(index), &self.shape) {
+            (MotorMap::Linear { coeffs }, _) => Solver::Linear { coeffs },
+            (MotorMap::Radius { centre: [0.0, 0.0] }, Shape::Polar(_)) => Solver::PolarRadius,
+            (MotorMap::Angle { centre: [0.0, 0.0] }, Shape::Polar(_)) => Solver::PolarAngle,
+            (_, Shape::Polar(polar)) => match index {
+                kinematics::polar::BED => Solver::PolarBed(polar.geometry()),
+                kinematics::polar::ARM => Solver::PolarArm(polar.geometry()),
+                _ => return None,
+            },
+            (_, Shape::Scara(scara)) => match index {
+                kinematics::scara::SHOULDER => Solver::ScaraShoulder(scara.geometry()),
+                kinematics::scara::ELBOW => Solver::ScaraElbow(scara.geometry()),
+                _ => return None,
+            },
+            _ => return None,
+        };
+        Some(solver)
+    }
+
+    /// Whether the straight move `start → end` can be made (the whole segment: reach, centre, singular poses,
+    /// joint limits, offsets included), and the cruise speed and acceleration its motor limits allow over its
+    /// whole length when requested at `speed` and `accel`.
+    pub fn check_move(
+        &self,
+        start: [f64; 3],
+        end: [f64; 3],
+        speed: f64,
+        accel: f64,
+    ) -> Result<MoveVerdict, String> {
+        let kin = self.kinematics();
+        kin.check_segment(start, end).map_err(|e| e.to_string())?;
+        let spans = split(kin, self.motor_limits(), start, end, speed, accel);
+        if spans.is_empty() {
+            return Ok(MoveVerdict::Free);
+        }
+        let speed = spans.iter().map(|s| s.max_speed).fold(speed, f64::min);
+        let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
+        Ok(MoveVerdict::Limited { speed, accel })
+    }
+
+    fn motor_limits(&self) -> &[MotorLimit] {
+        &self.setup.planner.kinematic_limits
+    }
+
+    /// How far `p` is from the edge of what the machine reaches (mm, negative outside): the SCARA's annulus
+    /// about the shoulder, the polar arm's travel. `None` for a Cartesian machine (its limits are per axis).
+    pub fn reach_margin(&self, p: [f64; 3]) -> Option<f64> {
+        match &self.shape {
+            Shape::Scara(scara) => {
+                let [sx, sy] = scara.shoulder();
+                let rho = (p[0] - sx).hypot(p[1] - sy);
+                Some((rho - scara.min_radius()).min(scara.max_radius() - rho))
+            }
+            Shape::Polar(polar) => {
+                let max = polar.params().arm.position_max?;
+                let g = polar.geometry();
+                match g.bed_and_arm(p[0], p[1]) {
+                    Ok((_, arm)) => Some(max - arm),
+                    // On the centre of an ideal bed the arm is at its zero.
+                    Err(ReachError::AtCentre { .. }) => Some(max + g.arm_zero_offset),
+                    // Inside the circle the offset arm never passes over: negative, by how far inside.
+                    Err(_) => Some(p[0].hypot(p[1]) - g.arm_lateral_offset.abs()),
+                }
+            }
+            Shape::Cartesian => None,
+        }
+    }
+}
+
+/// Every `section key` the config reader read, one per line.
+fn read_keys(config: &MachineConfig) -> Result<CString, String> {
+    let mut lines = String::new();
+    for section in config.document.sections() {
+        for entry in section.entries().iter().filter(|e| e.was_read()) {
+            lines.push_str(section.name());
+            lines.push(' ');
+            lines.push_str(entry.key());
+            lines.push('\n');
+        }
+    }
+    CString::new(lines).map_err(|e| e.to_string())
+}

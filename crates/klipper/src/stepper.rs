@@ -1,0 +1,169 @@
+//! Per-motor solvers that Klipper's itersolve calls for every trial time of every step.
+//!
+//! A solver is plain `Copy` data inside the allocated `struct stepper_kinematics` (no pointer back to the
+//! machine, no allocation), so Klipper may call it on any thread, for several motors at once. It never panics
+//! and never returns NaN: where the toolhead position has no motor position (the polar centre, out of reach),
+//! the motor stays where it was commanded last.
+
+use std::f64::consts::{PI, TAU};
+
+use kinematics::polar::PolarGeometry;
+use kinematics::scara::{Joints, ScaraGeometry};
+use kinematics::unwrap_near;
+
+use crate::abi::{AF_X, AF_Y, AF_Z, Move, StepperKinematics};
+
+/// How one motor's position follows the toolhead.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Solver {
+    /// `coeffs · p` (Cartesian axes, Z, and the joint-space homing moves).
+    Linear { coeffs: [f64; 3] },
+    /// Ideal polar arm: `√(x² + y²)` (Klipper's expression).
+    PolarRadius,
+    /// Ideal polar bed: `atan2(y, x)` unwrapped against the commanded angle (Klipper's expression).
+    PolarAngle,
+    /// Polar bed with the arm's zero and sideways offsets.
+    PolarBed(PolarGeometry),
+    /// Polar arm with the offsets.
+    PolarArm(PolarGeometry),
+    /// SCARA shoulder motor (`stepper_a`).
+    ScaraShoulder(ScaraGeometry),
+    /// SCARA elbow motor (`stepper_b`), coupled to the shoulder angle.
+    ScaraElbow(ScaraGeometry),
+}
+
+impl Solver {
+    /// The motor position at `move_time` into `m`, continuous with `commanded` (the last position stepped to).
+    #[inline]
+    pub fn position(&self, m: &Move, move_time: f64, commanded: f64) -> f64 {
+        let p = m.coord(move_time);
+        let [x, y, _] = p;
+        let position = match self {
+            Solver::Linear { coeffs } => linear(coeffs, p),
+            Solver::PolarRadius => (x * x + y * y).sqrt(),
+            Solver::PolarAngle if x == 0.0 && y == 0.0 => commanded,
+            Solver::PolarAngle => unwrap_near(y.atan2(x), commanded),
+            Solver::PolarBed(g) => g
+                .bed_and_arm(x, y)
+                .map_or(commanded, |(bed, _)| unwrap_near(bed, commanded)),
+            Solver::PolarArm(g) => g.bed_and_arm(x, y).map_or(commanded, |(_, arm)| arm),
+            Solver::ScaraShoulder(g) => g.joints(x, y).map_or(commanded, |j| {
+                let (a, _) = g.motors_from_joints(j);
+                unwrap_near(a, commanded)
+            }),
+            Solver::ScaraElbow(g) => g
+                .joints(x, y)
+                .map_or(commanded, |j| elbow_near(g, j, m, commanded)),
+        };
+        if position.is_finite() {
+            position
+        } else {
+            commanded
+        }
+    }
+
+    /// Which toolhead axes move this motor (`active_flags`).
+    pub fn active_axes(&self) -> i32 {
+        match self {
+            Solver::Linear { coeffs } => [AF_X, AF_Y, AF_Z]
+                .into_iter()
+                .zip(coeffs)
+                .filter(|(_, c)| **c != 0.0)
+                .fold(0, |flags, (flag, _)| flags | flag),
+            _ => AF_X | AF_Y,
+        }
+    }
+
+    /// Whether the commanded position is an angle that may be renormalised into `[−π, π]` after stepping
+    /// (a bed that turns without limit; its reading modulo a turn is all that matters).
+    fn renormalises(&self) -> bool {
+        matches!(self, Solver::PolarAngle | Solver::PolarBed(_))
+    }
+}
+
+/// A unit-vector motor (the common case) reads its axis exactly, as Klipper's cartesian kinematics does.
+#[inline]
+fn linear(coeffs: &[f64; 3], p: [f64; 3]) -> f64 {
+    match coeffs {
+        [1.0, 0.0, 0.0] => p[0],
+        [0.0, 1.0, 0.0] => p[1],
+        [0.0, 0.0, 1.0] => p[2],
+        [a, b, c] => a * p[0] + b * p[1] + c * p[2],
+    }
+}
+
+/// The elbow motor `q2 + c·q1 + zero` with `q1` taken whole turns away where needed: a shoulder turn moves
+/// this motor by `2π·c`, not `2π`, so its reading alone cannot be unwrapped like an angle. Near the commanded
+/// reading (within a quarter of `2π·c`) the plain value is the one; otherwise the turn count is fixed at the
+/// move's start, where the motor is within a step of its commanded reading, and `q1` is followed from there.
+#[inline]
+fn elbow_near(g: &ScaraGeometry, j: Joints, m: &Move, commanded: f64) -> f64 {
+    let (_, b) = g.motors_from_joints(j);
+    let per_turn = g.coupling(TAU).abs();
+    if per_turn == 0.0 || (b - commanded).abs() <= per_turn / 4.0 {
+        return b;
+    }
+    let [sx, sy, _] = m.start_pos;
+    let Ok(start) = g.joints(sx, sy) else {
+        return b;
+    };
+    let (_, b_start) = g.motors_from_joints(start);
+    let turns = ((commanded - b_start) / g.coupling(TAU)).round();
+    let q1 = unwrap_near(j.q1, start.q1 + turns * TAU);
+    g.motors_from_joints(Joints { q1, q2: j.q2 }).1
+}
+
+/// A `struct stepper_kinematics` followed by its solver. Klipper frees it with libc's `free`.
+#[repr(C)]
+#[derive(Debug)]
+pub struct JointspaceStepper {
+    pub sk: StepperKinematics,
+    pub solver: Solver,
+}
+
+/// Allocates a stepper with `solver` (libc `calloc`, so Klipper's `free` releases it); null when out of memory.
+pub fn allocate(solver: Solver) -> *mut StepperKinematics {
+    // SAFETY: calloc returns zeroed memory of the requested size or null; zero is a valid value for every
+    // field of `StepperKinematics` (null pointers, 0.0, None callbacks).
+    let stepper = unsafe { libc::calloc(1, std::mem::size_of::<JointspaceStepper>()) }
+        .cast::<JointspaceStepper>();
+    if stepper.is_null() {
+        return std::ptr::null_mut();
+    }
+    // SAFETY: `stepper` is non-null, aligned (calloc aligns for any type) and sized for a JointspaceStepper;
+    // the fields are written in place, nothing is read first.
+    unsafe {
+        std::ptr::addr_of_mut!((*stepper).solver).write(solver);
+        let sk = std::ptr::addr_of_mut!((*stepper).sk);
+        (*sk).active_flags = solver.active_axes();
+        (*sk).calc_position_cb = Some(calc_position);
+        (*sk).post_cb = solver.renormalises().then_some(renormalise as _);
+        sk
+    }
+}
+
+/// `calc_position_cb`.
+unsafe extern "C" fn calc_position(
+    sk: *mut StepperKinematics,
+    m: *mut Move,
+    move_time: f64,
+) -> f64 {
+    // SAFETY: Klipper calls this only with a stepper allocated by `allocate` (so `sk` is the first field of a
+    // JointspaceStepper) and a live move; it writes neither while the callback runs on this stepper.
+    let (solver, commanded, m) = unsafe {
+        let stepper = &*sk.cast::<JointspaceStepper>();
+        (stepper.solver, stepper.sk.commanded_pos, &*m)
+    };
+    solver.position(m, move_time, commanded)
+}
+
+/// `post_cb` of a bed that turns freely: keep the commanded angle within a turn, as Klipper's polar does.
+unsafe extern "C" fn renormalise(sk: *mut StepperKinematics) {
+    // SAFETY: called by Klipper on a stepper allocated by `allocate`, from the thread that owns it now.
+    let commanded = unsafe { &mut (*sk).commanded_pos };
+    if *commanded < -PI {
+        *commanded += TAU;
+    } else if *commanded > PI {
+        *commanded -= TAU;
+    }
+}

@@ -1,0 +1,32 @@
+/* libjointspace_klipper.so: jointspace's kinematics for Klipper and Kalico (C interface).
+ * jointspace.py hands these declarations to cffi (lines starting with '#' are left out), so keep them to
+ * plain declarations. struct stepper_kinematics is Klipper's (klippy/chelper/itersolve.h).
+ * Functions returning int give 0 on success and a negative number on failure, with the reason in `error`. */
+#ifndef JOINTSPACE_H
+#define JOINTSPACE_H
+#include <stddef.h>
+struct stepper_kinematics;
+struct jointspace_machine;
+
+const char *jointspace_version(void);
+void jointspace_stepper_kinematics_layout(size_t *out);
+
+struct jointspace_machine *jointspace_machine_new(const char *config_text, char *error, size_t error_len);
+void jointspace_machine_free(struct jointspace_machine *m);
+const char *jointspace_machine_read_keys(struct jointspace_machine *m);
+int jointspace_motor_count(struct jointspace_machine *m);
+const char *jointspace_motor_name(struct jointspace_machine *m, int index);
+
+struct stepper_kinematics *jointspace_stepper_alloc(struct jointspace_machine *m, const char *name);
+struct stepper_kinematics *jointspace_linear_stepper_alloc(double cx, double cy, double cz);
+
+int jointspace_forward(struct jointspace_machine *m, const double *motors, double *xyz,
+                       char *error, size_t error_len);
+int jointspace_inverse(struct jointspace_machine *m, const double *xyz, const double *previous,
+                       double *motors, char *error, size_t error_len);
+int jointspace_check_move(struct jointspace_machine *m, double start_x, double start_y, double start_z,
+                          double end_x, double end_y, double end_z, double speed, double accel,
+                          double *limits, char *error, size_t error_len);
+int jointspace_declared_home(struct jointspace_machine *m, double *xyz);
+int jointspace_reach_margin(struct jointspace_machine *m, double x, double y, double z, double *margin);
+#endif

@@ -1,0 +1,546 @@
+# jointspace kinematics for Klipper and Kalico: SCARA arms and polar printers
+#
+# Copyright (C) 2026  The jointspace developers
+#
+# This file may be distributed under the terms of the GNU GPLv3 license, or (at your option) any later
+# version. See LICENSE in this folder.
+#
+# Loaded from a [jointspace] config section (klippy/extras/ on Klipper, klippy/plugins/ on Kalico), it
+# registers the kinematics "jointspace_polar" and "jointspace_scara" before [printer] imports them. The
+# machine itself (geometry, offsets, limits, reach) lives in libjointspace_klipper.so, built from the same
+# printer.cfg keys the jointspace command line reads; Klipper's itersolve calls that library for every step.
+import inspect
+import logging
+import math
+import os
+import sys
+import types
+
+KALICO = __name__.startswith("klippy.")
+if KALICO:
+    from klippy import chelper, stepper
+else:
+    import chelper
+    import stepper
+
+HERE = os.path.dirname(os.path.realpath(__file__))
+LIBRARY_NAME = "libjointspace_klipper.so"
+ERROR_LEN = 512
+STEPPER_SECTIONS = {
+    "jointspace_polar": ("stepper_bed", "stepper_arm", "stepper_z"),
+    "jointspace_scara": ("stepper_a", "stepper_b", "stepper_z"),
+}
+
+
+######################################################################
+# The library
+######################################################################
+
+def _cdef_text():
+    # The C interface, from jointspace.h (preprocessor lines dropped: cffi reads declarations only).
+    with open(os.path.join(HERE, "jointspace.h")) as f:
+        return "".join(l for l in f if not l.lstrip().startswith("#"))
+
+
+def _library_path(config):
+    candidates = [
+        os.environ.get("JOINTSPACE_LIBRARY"),
+        config.get("library", None) if config.get_name() == "jointspace" else None,
+        os.path.join(HERE, LIBRARY_NAME),
+        os.path.join(HERE, "..", "target", "release", LIBRARY_NAME),
+    ]
+    for path in candidates:
+        if path and os.path.isfile(path):
+            return os.path.realpath(path)
+    raise config.error(
+        "jointspace: %s not found (run klipper/install.sh, or set "
+        "[jointspace] library: /path/to/%s)" % (LIBRARY_NAME, LIBRARY_NAME))
+
+
+def _stepper_kinematics_layout(ffi):
+    # Klipper's struct stepper_kinematics as this interpreter's cffi sees it (same header in every host).
+    ffi.cdef("""
+        struct jointspace_layout_probe {
+            double step_dist, commanded_pos; void *sc;
+            double last_flush_time, last_move_time; void *tq; int active_flags;
+            double gen_steps_pre_active, gen_steps_post_active;
+            void *calc_position_cb; void *post_cb;
+        };""")
+    t = "struct jointspace_layout_probe"
+    return [ffi.sizeof(t), ffi.offsetof(t, "commanded_pos"),
+            ffi.offsetof(t, "active_flags"), ffi.offsetof(t, "calc_position_cb"),
+            ffi.offsetof(t, "post_cb")]
+
+
+_LIBRARY = {}
+
+
+def load_library(config):
+    """(ffi, lib): the library loaded into Klipper's own cffi instance, so its stepper_kinematics pointers
+    are the ones Klipper's stepper code accepts."""
+    ffi, _ = chelper.get_ffi()
+    if "lib" not in _LIBRARY:
+        path = _library_path(config)
+        ffi.cdef(_cdef_text())
+        lib = ffi.dlopen(path)
+        ours = ffi.new("size_t[5]")
+        lib.jointspace_stepper_kinematics_layout(ours)
+        theirs = _stepper_kinematics_layout(ffi)
+        if list(ours) != theirs:
+            raise config.error(
+                "jointspace: %s was built for another struct stepper_kinematics "
+                "(layout %s, host %s)" % (path, list(ours), theirs))
+        logging.info("jointspace: loaded %s (%s)", path,
+                     ffi.string(lib.jointspace_version()).decode())
+        _LIBRARY["lib"] = lib
+    return ffi, _LIBRARY["lib"]
+
+
+def _config_text(config):
+    # The sections the machine is built from, as printer.cfg text (Klipper has already resolved includes
+    # and the SAVE_CONFIG block). Reading them here marks nothing as used.
+    names = ["printer"] + [s.get_name() for s in config.get_prefix_sections("stepper_")]
+    lines = []
+    for name in names:
+        section = config.getsection(name)
+        lines.append("[%s]" % (name,))
+        for option in section.get_prefix_options(""):
+            value = section.get(option, note_valid=False)
+            lines.append("%s: %s" % (option, str(value).replace("\n", "\n  ")))
+    return "\n".join(lines) + "\n"
+
+
+class Machine:
+    """The library's machine for this printer.cfg, and the questions asked of it."""
+
+    def __init__(self, config):
+        self.ffi, self.lib = load_library(config)
+        ffi, lib = self.ffi, self.lib
+        error = ffi.new("char[]", ERROR_LEN)
+        handle = lib.jointspace_machine_new(_config_text(config).encode(), error, ERROR_LEN)
+        if handle == ffi.NULL:
+            raise config.error("jointspace: %s" % (ffi.string(error).decode(),))
+        self.handle = ffi.gc(handle, lib.jointspace_machine_free)
+        # Keys the library read are ours: tell Klipper they are used (it refuses unknown keys).
+        for line in ffi.string(lib.jointspace_machine_read_keys(self.handle)).decode().splitlines():
+            section, key = line.split(" ", 1)
+            config.getsection(section).get(key, None)
+        count = lib.jointspace_motor_count(self.handle)
+        self.motor_names = [ffi.string(lib.jointspace_motor_name(self.handle, i)).decode()
+                            for i in range(count)]
+        self._motors = ffi.new("double[]", count)
+        self._xyz = ffi.new("double[3]")
+        self._limits = ffi.new("double[2]")
+        self._error = error
+        self._margin = ffi.new("double *")
+
+    def stepper_kinematics(self, name):
+        ffi, lib = self.ffi, self.lib
+        sk = lib.jointspace_stepper_alloc(self.handle, name.encode())
+        if sk == ffi.NULL:
+            raise self.error("no solver for %s" % (name,))
+        return ffi.gc(sk, chelper.get_ffi()[1].free)
+
+    def linear_stepper_kinematics(self, cx, cy, cz):
+        sk = self.lib.jointspace_linear_stepper_alloc(cx, cy, cz)
+        return self.ffi.gc(sk, chelper.get_ffi()[1].free)
+
+    def error(self, message):
+        return Exception("jointspace: %s" % (message,))
+
+    def _reason(self):
+        return self.ffi.string(self._error).decode()
+
+    def forward(self, motors):
+        for i, value in enumerate(motors):
+            self._motors[i] = value
+        if self.lib.jointspace_forward(self.handle, self._motors, self._xyz,
+                                       self._error, ERROR_LEN):
+            raise self.error(self._reason())
+        return [self._xyz[0], self._xyz[1], self._xyz[2]]
+
+    def inverse(self, pos):
+        for i in range(3):
+            self._xyz[i] = pos[i]
+        if self.lib.jointspace_inverse(self.handle, self._xyz, self.ffi.NULL, self._motors,
+                                       self._error, ERROR_LEN):
+            return None
+        return [self._motors[i] for i in range(len(self.motor_names))]
+
+    def check_move(self, start, end, speed, accel):
+        """None when nothing binds, (speed, accel) when the move must be slowed; raises ValueError with the
+        reason when the move cannot be made. speed <= 0 checks the segment only."""
+        rc = self.lib.jointspace_check_move(
+            self.handle, start[0], start[1], start[2], end[0], end[1], end[2], speed, accel,
+            self._limits, self._error, ERROR_LEN)
+        if rc < 0:
+            raise ValueError(self._reason())
+        if rc == 1:
+            return self._limits[0], self._limits[1]
+        return None
+
+    def declared_home(self):
+        if self.lib.jointspace_declared_home(self.handle, self._xyz):
+            return None
+        return [self._xyz[0], self._xyz[1], self._xyz[2]]
+
+    def reach_margin(self, pos):
+        if self.lib.jointspace_reach_margin(self.handle, pos[0], pos[1], pos[2], self._margin):
+            return None
+        return self._margin[0]
+
+
+######################################################################
+# Kinematics
+######################################################################
+
+def _axis_letters(axes):
+    # Klipper and Kalico pass "xyz" strings, the FEKT-SCARA fork lists of axis indexes.
+    return set("xyz"[a] if isinstance(a, int) else str(a).lower() for a in axes)
+
+
+def _coord(toolhead, values):
+    try:
+        return toolhead.Coord(tuple(values))
+    except TypeError:  # Kalico: a namedtuple (x, y, z, e)
+        return toolhead.Coord(*(list(values) + [0.0] * (4 - len(values))))
+
+
+def _rail(section, units_in_radians=False):
+    lookup = getattr(stepper, "LookupRail", None) or stepper.PrinterRail
+    return lookup(section, units_in_radians=units_in_radians)
+
+
+class JointspaceKinematics:
+    """What Klipper's toolhead calls on a kinematics, shared by the polar and SCARA machines. Subclasses
+    create the steppers in Klipper's order and say how the XY joints home."""
+
+    def __init__(self, toolhead, config, name):
+        self.printer = config.get_printer()
+        self.toolhead = toolhead
+        self.name = name
+        self.machine = Machine(config)
+        self.centre_slowdown = "exact"
+        self.motor_steppers = []  # (machine motor, Klipper stepper) in Klipper's order, from the subclass
+        self.joint_rails = {}     # section name -> rail of an XY joint that homes to an endstop
+        self.homed = set()
+        self.limit_z = (1.0, -1.0)
+        self.joint_space = False  # True while homing moves in joint coordinates
+        self.max_velocity, self.max_accel = toolhead.get_max_velocity()
+        self.max_z_velocity = config.getfloat("max_z_velocity", self.max_velocity, above=0.,
+                                              maxval=self.max_velocity)
+        self.max_z_accel = config.getfloat("max_z_accel", self.max_accel, above=0.,
+                                           maxval=self.max_accel)
+
+    def _attach(self, toolhead, rails, xy_reach):
+        # Every stepper gets its motor's solver from the machine (extra Z steppers share stepper_z's).
+        self.motor_steppers = [(motor, s) for motor, rail in rails
+                               for s in (rail.get_steppers() if hasattr(rail, "get_steppers")
+                                         else [rail])]
+        self.steppers = [s for _, s in self.motor_steppers]
+        for motor, s in self.motor_steppers:
+            s.set_stepper_kinematics(self.machine.stepper_kinematics(motor))
+            s.set_trapq(toolhead.get_trapq())
+            if KALICO:
+                toolhead.register_step_generator(s.generate_steps)
+        (x_min, y_min), (x_max, y_max) = xy_reach
+        z_min, z_max = self.rail_z.get_range()
+        self.axes_min = _coord(toolhead, (x_min, y_min, z_min))
+        self.axes_max = _coord(toolhead, (x_max, y_max, z_max))
+        sig = inspect.signature(toolhead.set_position).parameters.get("homing_axes")
+        # The FEKT-SCARA fork takes axis indexes, Klipper and Kalico a string of letters.
+        self.homing_axes_as_indexes = sig is not None and isinstance(sig.default, tuple)
+
+    # -- positions --------------------------------------------------------------------------------
+    def get_steppers(self):
+        return list(self.steppers)
+
+    def calc_position(self, stepper_positions):
+        if self.joint_space:
+            return self.joint_coordinates(stepper_positions)
+        return self.machine.forward([stepper_positions[n] for n in self.machine.motor_names])
+
+    def set_position(self, newpos, homing_axes):
+        for s in self.steppers:
+            s.set_position(newpos)
+        letters = _axis_letters(homing_axes)
+        if "x" in letters and "y" in letters:
+            self.homed.add("xy")
+        if "z" in letters:
+            self.limit_z = self.rail_z.get_range()
+
+    def clear_homing_state(self, clear_axes):
+        letters = _axis_letters(clear_axes)
+        if "x" in letters or "y" in letters:
+            self.homed.discard("xy")
+        if "z" in letters:
+            self.limit_z = (1.0, -1.0)
+
+    def note_z_not_homed(self):
+        self.clear_homing_state("z")
+
+    # -- homing -----------------------------------------------------------------------------------
+    def home(self, homing_state):
+        axes = homing_state.get_axes()
+        home_xy = 0 in axes or 1 in axes
+        home_z = 2 in axes
+        homing_state.set_axes(([0, 1] if home_xy else []) + ([2] if home_z else []))
+        if home_xy:
+            self.home_xy(homing_state)
+        if home_z:
+            self._home_rail(homing_state, 2, self.rail_z, [None, None, None])
+
+    def _home_rail(self, homing_state, axis, rail, others):
+        # Run to the endstop from the far end of the rail's travel (Klipper's rail homing).
+        position_min, position_max = rail.get_range()
+        info = rail.get_homing_info()
+        homepos = list(others) + [None]
+        homepos[axis] = info.position_endstop
+        forcepos = list(homepos)
+        if info.positive_dir:
+            forcepos[axis] -= info.position_endstop - position_min
+        else:
+            forcepos[axis] += position_max - info.position_endstop
+        homing_state.home_rails([rail], forcepos, homepos)
+
+    def home_in_joint_space(self, homing_state, order, start):
+        """Homes the XY joints one after the other in joint space: each joint's solver is swapped for a linear
+        one (as FORCE_MOVE does), so the toolhead's X and Y stand for the two joint readings (degrees for
+        angles, mm for a rail) and a homing move turns one joint alone. Returns the joint readings homed to."""
+        joints = list(start)
+        self.toolhead.flush_step_generation()
+        saved = {}
+        self.joint_space = True
+        try:
+            for motor, s in self.motor_steppers:
+                if motor not in self.joint_names:
+                    continue
+                coeffs = [0., 0., 0.]
+                coeffs[self.joint_names.index(motor)] = self.joint_scale(motor)
+                sk = self.machine.linear_stepper_kinematics(*coeffs)
+                saved[s] = s.set_stepper_kinematics(sk)
+            for axis in order:
+                rail = self.joint_rails[self.joint_names[axis]]
+                others = list(joints) + [None]
+                others[axis] = None
+                self._home_rail(homing_state, axis, rail, others[:3])
+                joints[axis] = rail.get_homing_info().position_endstop
+            self.toolhead.flush_step_generation()
+        finally:
+            for s, sk in saved.items():
+                s.set_stepper_kinematics(sk)
+            self.joint_space = False
+        return joints
+
+    def joint_coordinates(self, stepper_positions):
+        # The toolhead position while homing in joint space: X and Y are the joint readings.
+        x, y = [stepper_positions[n] / self.joint_scale(n) for n in self.joint_names]
+        return [x, y, stepper_positions["stepper_z"]]
+
+    def set_homed_pose(self, homing_state, xyz):
+        # The pose the joints were homed to, as a toolhead position; both XY axes are homed from now on.
+        pos = self.toolhead.get_position()
+        pos[0], pos[1] = xyz[0], xyz[1]
+        self.toolhead.set_position(pos, homing_axes=self.homing_axes_arg("xy"))
+
+    def homing_axes_arg(self, letters):
+        if self.homing_axes_as_indexes:
+            return ["xyz".index(c) for c in letters]
+        return letters
+
+    # -- moves ------------------------------------------------------------------------------------
+    def check_move(self, move):
+        if self.joint_space:
+            return
+        end = move.end_pos
+        xy_moves = move.axes_d[0] or move.axes_d[1]
+        if xy_moves and "xy" not in self.homed:
+            raise move.move_error("Must home axis first")
+        if move.axes_d[2]:
+            if end[2] < self.limit_z[0] or end[2] > self.limit_z[1]:
+                if self.limit_z[0] > self.limit_z[1]:
+                    raise move.move_error("Must home axis first")
+                raise move.move_error()
+            # Klipper's Z limits, scaled by the Z share of the move.
+            z_ratio = move.move_d / abs(move.axes_d[2])
+            move.limit_speed(self.max_z_velocity * z_ratio, self.max_z_accel * z_ratio)
+        if not xy_moves:
+            return
+        exact = self.centre_slowdown == "exact"
+        speed = math.sqrt(move.max_cruise_v2) if exact else 0.
+        try:
+            limits = self.machine.check_move(move.start_pos, end, speed, move.accel)
+        except ValueError as e:
+            raise move.move_error("Move out of range (%s)" % (e,))
+        if limits is not None:
+            move.limit_speed(limits[0], limits[1])
+        if not exact:
+            self.klipper_centre_slowdown(move)
+
+    def klipper_centre_slowdown(self, move):
+        pass
+
+    # -- status -----------------------------------------------------------------------------------
+    def get_status(self, eventtime):
+        pos = self.toolhead.get_position()
+        status = {
+            "homed_axes": ("xy" if "xy" in self.homed else "")
+            + ("z" if self.limit_z[0] <= self.limit_z[1] else ""),
+            "axis_minimum": self.axes_min,
+            "axis_maximum": self.axes_max,
+        }
+        motors = self.machine.inverse(pos)
+        if motors is not None:
+            # Angles in degrees, rails in mm.
+            status["jointspace_joints"] = {
+                n: (math.degrees(v) if n in self.angle_motors else v)
+                for n, v in zip(self.machine.motor_names, motors)}
+        margin = self.machine.reach_margin(pos)
+        if margin is not None:
+            status["jointspace_reach_margin"] = margin
+        status["jointspace_kinematics"] = self.name
+        status["jointspace_offsets"] = self.offsets
+        return status
+
+
+class PolarKinematics(JointspaceKinematics):
+    """Rotating bed (stepper_bed), radial arm (stepper_arm), Z; with the arm's zero and sideways offsets."""
+
+    joint_names = ("stepper_arm", "stepper_bed")
+    angle_motors = ("stepper_bed",)
+
+    def __init__(self, toolhead, config):
+        JointspaceKinematics.__init__(self, toolhead, config, "jointspace_polar")
+        # Created in Klipper's order (bed, arm, z), so the MCU objects get the same ids.
+        stepper_bed = stepper.PrinterStepper(config.getsection("stepper_bed"),
+                                             units_in_radians=True)
+        rail_arm = _rail(config.getsection("stepper_arm"))
+        self.rail_z = stepper.LookupMultiRail(config.getsection("stepper_z"))
+        self.joint_rails = {"stepper_arm": rail_arm}
+        max_xy = rail_arm.get_range()[1]
+        self._attach(toolhead, [("stepper_bed", stepper_bed), ("stepper_arm", rail_arm),
+                                ("stepper_z", self.rail_z)],
+                     ((-max_xy, -max_xy), (max_xy, max_xy)))
+        self.v_rad_max = config.getfloat("max_angular_velocity", 0., minval=0.)
+        self.centre_slowdown = config.getchoice("centre_slowdown",
+                                                {"exact": "exact", "klipper": "klipper"},
+                                                "exact")
+        self.offsets = {
+            "arm_zero_offset": config.getfloat("arm_zero_offset", 0.),
+            "arm_lateral_offset": config.getfloat("arm_lateral_offset", 0.),
+        }
+
+    def joint_scale(self, name):
+        # Toolhead units per motor unit while homing: the arm in mm, the bed's reading in radians.
+        return 1.
+
+    def home_xy(self, homing_state):
+        # The arm runs to its endstop; the bed has none and is declared at angle 0 (as Klipper's polar does).
+        joints = self.home_in_joint_space(homing_state, [0], [0., 0.])
+        self.set_homed_pose(homing_state, self.machine.forward([0., joints[0], 0.]))
+
+    def klipper_centre_slowdown(self, move):
+        # Klipper's own rule (polar.py): slow the whole move by the bed speed at its closest approach,
+        # scaled from max_velocity. Kept for printers that want Klipper's planning exactly.
+        if not self.v_rad_max:
+            return
+        d = _distance_to_centre(move.start_pos, move.end_pos)
+        if d == 0:
+            return
+        v_angular = math.sqrt(move.max_cruise_v2) / d
+        if self.v_rad_max < v_angular:
+            scale = self.v_rad_max / v_angular
+            move.limit_speed(self.max_velocity * scale, self.max_accel * scale)
+
+
+def _distance_to_centre(p1, p2):
+    # Distance of the segment p1-p2 from X0 Y0, in Klipper's arithmetic (so centre_slowdown: klipper plans
+    # bit for bit as Klipper's polar does).
+    ab_x = p2[0] - p1[0]
+    ab_y = p2[1] - p1[1]
+    ap_x = -p1[0]
+    ap_y = -p1[1]
+    dot = ab_x * ap_x + ab_y * ap_y
+    length = math.sqrt(ab_x ** 2 + ab_y ** 2)
+    if dot <= 0:
+        return math.sqrt(ap_x ** 2 + ap_y ** 2)
+    if dot >= length ** 2:
+        return math.sqrt(p2[0] ** 2 + p2[1] ** 2)
+    return abs(ab_x * ap_y - ab_y * ap_x) / length
+
+
+class ScaraKinematics(JointspaceKinematics):
+    """SCARA: shoulder motor (stepper_a), elbow motor (stepper_b, coupled to the shoulder), Z."""
+
+    joint_names = ("stepper_a", "stepper_b")
+    angle_motors = joint_names
+
+    def __init__(self, toolhead, config):
+        JointspaceKinematics.__init__(self, toolhead, config, "jointspace_scara")
+        self.home_position = self.machine.declared_home()
+        joints = []
+        for name in self.joint_names:
+            section = config.getsection(name)
+            if self.home_position is None:
+                joints.append(stepper.LookupMultiRail(section, units_in_radians=True))
+            else:
+                # FEKT-SCARA: the pose is declared, the joints need no endstops.
+                joints.append(stepper.PrinterStepper(section, units_in_radians=True))
+        if self.home_position is None:
+            self.joint_rails = dict(zip(self.joint_names, joints))
+        self.rail_z = stepper.LookupMultiRail(config.getsection("stepper_z"))
+        self.offsets = {k: config.getfloat(k, 0.) for k in ("offset_x", "offset_y")}
+        reach = config.getfloat("link1_length") + config.getfloat("link2_length")
+        ox, oy = self.offsets["offset_x"], self.offsets["offset_y"]
+        self._attach(toolhead, list(zip(self.joint_names, joints)) + [("stepper_z", self.rail_z)],
+                     ((ox - reach, oy - reach), (ox + reach, oy + reach)))
+
+    def joint_scale(self, name):
+        # While homing, the toolhead's X and Y are the joint readings in degrees (as position_endstop).
+        return math.pi / 180. if name in self.joint_names else 1.
+
+    def home_xy(self, homing_state):
+        if self.home_position is not None:
+            # FEKT-SCARA's homing: no motion, the arm is declared at home_position.
+            pos = self.toolhead.get_position()
+            pos[0], pos[1] = self.home_position[0], self.home_position[1]
+            self.toolhead.set_position(pos, homing_axes=self.homing_axes_arg("xy"))
+            return
+        joints = self.home_in_joint_space(homing_state, [0, 1], [0., 0.])
+        motors = [math.radians(joints[0]), math.radians(joints[1]), 0.]
+        self.set_homed_pose(homing_state, self.machine.forward(motors))
+
+
+def load_kinematics_polar(toolhead, config):
+    return PolarKinematics(toolhead, config)
+
+
+def load_kinematics_scara(toolhead, config):
+    return ScaraKinematics(toolhead, config)
+
+
+######################################################################
+# [jointspace]: register the kinematics modules
+######################################################################
+
+def _register(name, loader):
+    module = types.ModuleType(name)
+    module.load_kinematics = loader
+    for prefix in ("kinematics.", "klippy.kinematics."):
+        sys.modules[prefix + name] = module
+
+
+class Jointspace:
+    def __init__(self, config):
+        # Fail early, naming the path, if the library is missing or was built for another host.
+        ffi, lib = load_library(config)
+        self.version = ffi.string(lib.jointspace_version()).decode()
+        _register("jointspace_polar", load_kinematics_polar)
+        _register("jointspace_scara", load_kinematics_scara)
+
+    def get_status(self, eventtime):
+        return {"version": self.version}
+
+
+def load_config(config):
+    return Jointspace(config)

@@ -238,6 +238,8 @@ class JointspaceKinematics:
                                for s in (rail.get_steppers() if hasattr(rail, "get_steppers")
                                          else [rail])]
         self.steppers = [s for _, s in self.motor_steppers]
+        # Kalico's homing looks for the rails (with endstops) that move each axis.
+        self.rails = [rail for _, rail in rails if hasattr(rail, "get_steppers")]
         for motor, s in self.motor_steppers:
             s.set_stepper_kinematics(self.machine.stepper_kinematics(motor))
             s.set_trapq(toolhead.get_trapq())
@@ -306,7 +308,7 @@ class JointspaceKinematics:
     def home_in_joint_space(self, homing_state, order, start):
         """Homes the XY joints one after the other in joint space: each joint's solver is swapped for a linear
         one (as FORCE_MOVE does), so the toolhead's X and Y stand for the two joint readings (degrees for
-        angles, mm for a rail) and a homing move turns one joint alone. Returns the joint readings homed to."""
+        angles, mm for a rail) and a homing move turns one joint alone. Returns the joint readings it ends at."""
         joints = list(start)
         self.toolhead.flush_step_generation()
         saved = {}
@@ -324,7 +326,8 @@ class JointspaceKinematics:
                 others = list(joints) + [None]
                 others[axis] = None
                 self._home_rail(homing_state, axis, rail, others[:3])
-                joints[axis] = rail.get_homing_info().position_endstop
+                # Where the joint ended: its endstop, or short of it after Kalico's final retract.
+                joints = self.toolhead.get_position()[:2]
             self.toolhead.flush_step_generation()
         finally:
             for s, sk in saved.items():
@@ -481,13 +484,16 @@ class ScaraKinematics(JointspaceKinematics):
         joints = []
         for name in self.joint_names:
             section = config.getsection(name)
-            if self.home_position is None:
+            if section.get("endstop_pin", None, note_valid=False) is not None:
                 joints.append(stepper.LookupMultiRail(section, units_in_radians=True))
-            else:
-                # FEKT-SCARA: the pose is declared, the joints need no endstops.
+                self.joint_rails[name] = joints[-1]
+            elif self.home_position is not None:
+                # FEKT-SCARA's homing declares the pose: a joint needs no endstop.
                 joints.append(stepper.PrinterStepper(section, units_in_radians=True))
-        if self.home_position is None:
-            self.joint_rails = dict(zip(self.joint_names, joints))
+            else:
+                raise config.error(
+                    "jointspace_scara: [%s] needs endstop_pin (the joints home to endstops) "
+                    "or [printer] needs home_position (the pose homing declares)" % (name,))
         self.rail_z = stepper.LookupMultiRail(config.getsection("stepper_z"))
         self.offsets = {k: config.getfloat(k, 0.) for k in ("offset_x", "offset_y")}
         reach = config.getfloat("link1_length") + config.getfloat("link2_length")

@@ -3,6 +3,7 @@
 //! and how fast, the pose to report. The machine is built by the `config` crate exactly as the `jointspace`
 //! command line builds it, so one printer.cfg means the same machine in both.
 
+use std::f64::consts::PI;
 use std::ffi::{CStr, CString};
 
 use config::MachineConfig;
@@ -47,8 +48,11 @@ pub enum MoveVerdict {
 impl Machine {
     /// Builds the machine from printer.cfg text (only the sections it needs; includes are already resolved).
     pub fn from_config_text(text: &str) -> Result<Machine, String> {
-        let config =
+        let mut config =
             MachineConfig::from_str(text, "printer.cfg").map_err(|e| format!("config: {e}"))?;
+        if let MachineParams::Scara(p) = &mut config.params {
+            p.shoulder_limits = Some(within_branch_cut(p.shoulder_limits));
+        }
         let setup = MachineSetup::from_config(&config).map_err(|e| e.to_string())?;
         let motor_names = setup
             .kinematics
@@ -167,6 +171,13 @@ impl Machine {
             Shape::Cartesian => None,
         }
     }
+}
+
+/// The shoulder range the step solvers can follow: at most (−π, π], where they take q1 as the FEKT-SCARA module
+/// does (a move through q1 = ±π would make the elbow motor jump by `2π·c`, so it is refused as a joint limit).
+fn within_branch_cut(limits: Option<(f64, f64)>) -> (f64, f64) {
+    let (min, max) = limits.unwrap_or((-PI, PI));
+    (min.max(-PI), max.min(PI))
 }
 
 /// Every `section key` the config reader read, one per line.

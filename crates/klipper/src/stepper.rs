@@ -8,7 +8,7 @@
 use std::f64::consts::{PI, TAU};
 
 use kinematics::polar::PolarGeometry;
-use kinematics::scara::{Joints, ScaraGeometry};
+use kinematics::scara::ScaraGeometry;
 use kinematics::unwrap_near;
 
 use crate::abi::{AF_X, AF_Y, AF_Z, Move, StepperKinematics};
@@ -47,13 +47,15 @@ impl Solver {
                 .bed_and_arm(x, y)
                 .map_or(commanded, |(bed, _)| unwrap_near(bed, commanded)),
             Solver::PolarArm(g) => g.bed_and_arm(x, y).map_or(commanded, |(_, arm)| arm),
-            Solver::ScaraShoulder(g) => g.joints(x, y).map_or(commanded, |j| {
-                let (a, _) = g.motors_from_joints(j);
-                unwrap_near(a, commanded)
-            }),
+            // Both SCARA motors are plain functions of the position, with the shoulder angle in (−π, π] as
+            // the FEKT-SCARA module computes it: the elbow motor's `c·q1` term cannot be unwrapped from its
+            // own reading, so the machine refuses moves that would take q1 through ±π instead.
+            Solver::ScaraShoulder(g) => g
+                .joints(x, y)
+                .map_or(commanded, |j| g.motors_from_joints(j).0),
             Solver::ScaraElbow(g) => g
                 .joints(x, y)
-                .map_or(commanded, |j| elbow_near(g, j, m, commanded)),
+                .map_or(commanded, |j| g.motors_from_joints(j).1),
         };
         if position.is_finite() {
             position
@@ -90,27 +92,6 @@ fn linear(coeffs: &[f64; 3], p: [f64; 3]) -> f64 {
         [0.0, 0.0, 1.0] => p[2],
         [a, b, c] => a * p[0] + b * p[1] + c * p[2],
     }
-}
-
-/// The elbow motor `q2 + c·q1 + zero` with `q1` taken whole turns away where needed: a shoulder turn moves
-/// this motor by `2π·c`, not `2π`, so its reading alone cannot be unwrapped like an angle. Near the commanded
-/// reading (within a quarter of `2π·c`) the plain value is the one; otherwise the turn count is fixed at the
-/// move's start, where the motor is within a step of its commanded reading, and `q1` is followed from there.
-#[inline]
-fn elbow_near(g: &ScaraGeometry, j: Joints, m: &Move, commanded: f64) -> f64 {
-    let (_, b) = g.motors_from_joints(j);
-    let per_turn = g.coupling(TAU).abs();
-    if per_turn == 0.0 || (b - commanded).abs() <= per_turn / 4.0 {
-        return b;
-    }
-    let [sx, sy, _] = m.start_pos;
-    let Ok(start) = g.joints(sx, sy) else {
-        return b;
-    };
-    let (_, b_start) = g.motors_from_joints(start);
-    let turns = ((commanded - b_start) / g.coupling(TAU)).round();
-    let q1 = unwrap_near(j.q1, start.q1 + turns * TAU);
-    g.motors_from_joints(Joints { q1, q2: j.q2 }).1
 }
 
 /// A `struct stepper_kinematics` followed by its solver. Klipper frees it with libc's `free`.

@@ -11,14 +11,18 @@ struct jointspace_machine;
 const char *jointspace_version(void);
 void jointspace_stepper_kinematics_layout(size_t *out);
 
-struct jointspace_machine *jointspace_machine_new(const char *config_text, char *error, size_t error_len);
+struct jointspace_machine *jointspace_machine_new(const char *config_text, int fused_arithmetic,
+                                                  char *error, size_t error_len);
 void jointspace_machine_free(struct jointspace_machine *m);
 const char *jointspace_machine_read_keys(struct jointspace_machine *m);
 int jointspace_motor_count(struct jointspace_machine *m);
 const char *jointspace_motor_name(struct jointspace_machine *m, int index);
 
 struct stepper_kinematics *jointspace_stepper_alloc(struct jointspace_machine *m, const char *name);
-struct stepper_kinematics *jointspace_linear_stepper_alloc(double cx, double cy, double cz);
+struct stepper_kinematics *jointspace_linear_stepper_alloc(double cx, double cy, double cz,
+                                                           int fused_arithmetic);
+/* Probe of the host's arithmetic: `move` is Klipper's struct move. */
+double jointspace_polar_radius(const void *move, double move_time, int fused_arithmetic);
 
 int jointspace_forward(struct jointspace_machine *m, const double *motors, double *xyz,
                        char *error, size_t error_len);

@@ -73,6 +73,46 @@ def _stepper_kinematics_layout(ffi):
 
 
 _LIBRARY = {}
+PROBE_MOVE = """
+    struct jointspace_probe_move {
+        double print_time, move_t, start_v, half_accel;
+        double start_pos[3], axes_r[3];
+        void *node[2];
+    };"""
+
+
+def _host_arithmetic(ffi, lib):
+    """Whether the host's C helper rounds like fused multiply-adds (Kalico compiles it with -march=native):
+    the host's own polar arm solver and ours, in both arithmetics, on sample moves. Our solvers then compute
+    positions exactly as the host's would, so step times agree to the bit. None when neither matches."""
+    host_lib = chelper.get_ffi()[1]
+    sk = ffi.gc(host_lib.polar_stepper_alloc(b"r"), host_lib.free)
+    probe = ffi.cast("struct jointspace_layout_probe *", sk)
+    calc = ffi.cast("double (*)(void *, void *, double)", probe.calc_position_cb)
+    move = ffi.new("struct jointspace_probe_move *")
+    state = 12345
+    matches = {0: True, 1: True}
+    for _ in range(400):
+        values = []
+        for _ in range(9):
+            state = (state * 6364136223846793005 + 1442695040888963407) % (1 << 64)
+            values.append((state >> 11) / float(1 << 53))
+        move.move_t = 1. + values[0]
+        move.start_v = 300. * values[1]
+        move.half_accel = 1500. * (values[2] - .5)
+        move.start_pos[0], move.start_pos[1] = 600. * (values[3] - .5), 600. * (values[4] - .5)
+        move.axes_r[0] = values[5] - .5
+        move.axes_r[1] = math.sqrt(max(0., 1. - move.axes_r[0] ** 2)) * (1 if values[6] > .5 else -1)
+        t = values[7] * move.move_t
+        host = calc(sk, move, t)
+        for fused in (0, 1):
+            if lib.jointspace_polar_radius(move, t, fused) != host:
+                matches[fused] = False
+    if matches[0]:
+        return 0
+    if matches[1]:
+        return 1
+    return None
 
 
 def load_library(config):
@@ -90,9 +130,17 @@ def load_library(config):
             raise config.error(
                 "jointspace: %s was built for another struct stepper_kinematics "
                 "(layout %s, host %s)" % (path, list(ours), theirs))
-        logging.info("jointspace: loaded %s (%s)", path,
-                     ffi.string(lib.jointspace_version()).decode())
+        ffi.cdef(PROBE_MOVE)
+        fused = _host_arithmetic(ffi, lib)
+        if fused is None:
+            logging.warning("jointspace: the host's step solver rounds in neither known way; "
+                            "step times may differ from its own kinematics by a tick")
+            fused = 0
+        logging.info("jointspace: loaded %s (%s), %s arithmetic", path,
+                     ffi.string(lib.jointspace_version()).decode(),
+                     "fused multiply-add" if fused else "plain")
         _LIBRARY["lib"] = lib
+        _LIBRARY["fused"] = fused
     return ffi, _LIBRARY["lib"]
 
 
@@ -117,7 +165,8 @@ class Machine:
         self.ffi, self.lib = load_library(config)
         ffi, lib = self.ffi, self.lib
         error = ffi.new("char[]", ERROR_LEN)
-        handle = lib.jointspace_machine_new(_config_text(config).encode(), error, ERROR_LEN)
+        handle = lib.jointspace_machine_new(_config_text(config).encode(), _LIBRARY["fused"],
+                                            error, ERROR_LEN)
         if handle == ffi.NULL:
             raise config.error("jointspace: %s" % (ffi.string(error).decode(),))
         self.handle = ffi.gc(handle, lib.jointspace_machine_free)
@@ -142,7 +191,7 @@ class Machine:
         return ffi.gc(sk, chelper.get_ffi()[1].free)
 
     def linear_stepper_kinematics(self, cx, cy, cz):
-        sk = self.lib.jointspace_linear_stepper_alloc(cx, cy, cz)
+        sk = self.lib.jointspace_linear_stepper_alloc(cx, cy, cz, _LIBRARY["fused"])
         return self.ffi.gc(sk, chelper.get_ffi()[1].free)
 
     def error(self, message):

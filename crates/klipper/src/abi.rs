@@ -47,9 +47,19 @@ pub struct Move {
 
 impl Move {
     /// The toolhead position at `move_time`, with `move_get_coord`'s arithmetic (so positions, and the step
-    /// times found from them, are bit-identical to Klipper's own kinematics).
+    /// times found from them, are bit-identical to the host's own kinematics). `fused`: the host's C helper
+    /// was compiled with fused multiply-adds (Kalico builds it with `-march=native`), so its products and sums
+    /// round once; the Python side learns which the running host uses (`jointspace_polar_radius`).
     #[inline]
-    pub fn coord(&self, move_time: f64) -> [f64; 3] {
+    pub fn coord(&self, move_time: f64, fused: bool) -> [f64; 3] {
+        if fused {
+            let distance = self.half_accel.mul_add(move_time, self.start_v) * move_time;
+            return [
+                self.axes_r[0].mul_add(distance, self.start_pos[0]),
+                self.axes_r[1].mul_add(distance, self.start_pos[1]),
+                self.axes_r[2].mul_add(distance, self.start_pos[2]),
+            ];
+        }
         let distance = (self.start_v + self.half_accel * move_time) * move_time;
         [
             self.start_pos[0] + self.axes_r[0] * distance,

@@ -94,7 +94,8 @@ pub unsafe extern "C" fn jointspace_stepper_kinematics_layout(out: *mut usize) {
     }
 }
 
-/// Builds a machine from printer.cfg text (its `[printer]` and stepper sections). Null on failure, with the
+/// Builds a machine from printer.cfg text (its `[printer]` and stepper sections) whose solvers compute positions
+/// with the host's arithmetic (`fused_arithmetic`: see [`jointspace_polar_radius`]). Null on failure, with the
 /// reason in `error`.
 ///
 /// # Safety
@@ -102,6 +103,7 @@ pub unsafe extern "C" fn jointspace_stepper_kinematics_layout(out: *mut usize) {
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn jointspace_machine_new(
     config_text: *const c_char,
+    fused_arithmetic: c_int,
     error: *mut c_char,
     error_len: usize,
 ) -> *mut Machine {
@@ -111,7 +113,7 @@ pub unsafe extern "C" fn jointspace_machine_new(
     }
     // SAFETY: per the contract, a NUL-terminated string.
     let text = unsafe { CStr::from_ptr(config_text) }.to_string_lossy();
-    match Machine::from_config_text(&text) {
+    match Machine::from_config_text(&text, fused_arithmetic != 0) {
         Ok(m) => Box::into_raw(Box::new(m)),
         Err(e) => {
             write_message(&e, error, error_len);
@@ -168,7 +170,7 @@ pub unsafe extern "C" fn jointspace_stepper_alloc(
     // SAFETY: per the contract.
     let name = unsafe { CStr::from_ptr(name) }.to_string_lossy();
     match machine(m).and_then(|m| m.solver(&name)) {
-        Some(solver) => allocate(solver),
+        Some(solver) => allocate(solver, machine(m).is_some_and(Machine::fused)),
         None => ptr::null_mut(),
     }
 }
@@ -180,13 +182,32 @@ pub extern "C" fn jointspace_linear_stepper_alloc(
     cx: f64,
     cy: f64,
     cz: f64,
+    fused_arithmetic: c_int,
 ) -> *mut StepperKinematics {
     if ![cx, cy, cz].iter().all(|c| c.is_finite()) {
         return ptr::null_mut();
     }
-    allocate(Solver::Linear {
+    let solver = Solver::Linear {
         coeffs: [cx, cy, cz],
-    })
+    };
+    allocate(solver, fused_arithmetic != 0)
+}
+
+/// The ideal polar arm's position at `move_time` into `m` (`√(x² + y²)`), in plain or fused arithmetic. The
+/// Python side compares it with the host's own polar solver on sample moves to learn which arithmetic the host's
+/// C helper was compiled with, so every solver here reproduces the host's positions to the bit.
+///
+/// # Safety
+/// `m` points to a `struct move` (its first ten doubles are read).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_polar_radius(
+    m: *const abi::Move,
+    move_time: f64,
+    fused_arithmetic: c_int,
+) -> f64 {
+    // SAFETY: per the contract.
+    let m = unsafe { &*m };
+    Solver::PolarRadius.position(m, move_time, 0.0, fused_arithmetic != 0)
 }
 
 /// Toolhead position `xyz[3]` of motor positions `motors[motor_count]`. 0, or −1 with the reason.

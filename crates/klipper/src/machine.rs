@@ -26,6 +26,8 @@ pub struct Machine {
     read_keys: CString,
     /// SCARA `home_position` (FEKT-SCARA's declared pose), if configured.
     declared_home: Option<[f64; 3]>,
+    /// The host's arithmetic, for the solvers (see `abi::Move::coord`).
+    fused: bool,
 }
 
 /// The machine's own type, for what only it knows (its solvers' geometry, its reach).
@@ -47,7 +49,7 @@ pub enum MoveVerdict {
 
 impl Machine {
     /// Builds the machine from printer.cfg text (only the sections it needs; includes are already resolved).
-    pub fn from_config_text(text: &str) -> Result<Machine, String> {
+    pub fn from_config_text(text: &str, fused: bool) -> Result<Machine, String> {
         let mut config =
             MachineConfig::from_str(text, "printer.cfg").map_err(|e| format!("config: {e}"))?;
         if let MachineParams::Scara(p) = &mut config.params {
@@ -80,6 +82,7 @@ impl Machine {
             setup,
             motor_names,
             declared_home,
+            fused,
         })
     }
 
@@ -93,6 +96,10 @@ impl Machine {
 
     pub fn read_keys(&self) -> &CStr {
         &self.read_keys
+    }
+
+    pub fn fused(&self) -> bool {
+        self.fused
     }
 
     pub fn declared_home(&self) -> Option<[f64; 3]> {

@@ -35,11 +35,12 @@ pub enum Solver {
 impl Solver {
     /// The motor position at `move_time` into `m`, continuous with `commanded` (the last position stepped to).
     #[inline]
-    pub fn position(&self, m: &Move, move_time: f64, commanded: f64) -> f64 {
-        let p = m.coord(move_time);
+    pub fn position(&self, m: &Move, move_time: f64, commanded: f64, fused: bool) -> f64 {
+        let p = m.coord(move_time, fused);
         let [x, y, _] = p;
         let position = match self {
             Solver::Linear { coeffs } => linear(coeffs, p),
+            Solver::PolarRadius if fused => x.mul_add(x, y * y).sqrt(),
             Solver::PolarRadius => (x * x + y * y).sqrt(),
             Solver::PolarAngle if x == 0.0 && y == 0.0 => commanded,
             Solver::PolarAngle => unwrap_near(y.atan2(x), commanded),
@@ -100,10 +101,12 @@ fn linear(coeffs: &[f64; 3], p: [f64; 3]) -> f64 {
 pub struct JointspaceStepper {
     pub sk: StepperKinematics,
     pub solver: Solver,
+    /// The host's arithmetic (see [`Move::coord`]).
+    pub fused: bool,
 }
 
 /// Allocates a stepper with `solver` (libc `calloc`, so Klipper's `free` releases it); null when out of memory.
-pub fn allocate(solver: Solver) -> *mut StepperKinematics {
+pub fn allocate(solver: Solver, fused: bool) -> *mut StepperKinematics {
     // SAFETY: calloc returns zeroed memory of the requested size or null; zero is a valid value for every
     // field of `StepperKinematics` (null pointers, 0.0, None callbacks).
     let stepper = unsafe { libc::calloc(1, std::mem::size_of::<JointspaceStepper>()) }
@@ -115,6 +118,7 @@ pub fn allocate(solver: Solver) -> *mut StepperKinematics {
     // the fields are written in place, nothing is read first.
     unsafe {
         std::ptr::addr_of_mut!((*stepper).solver).write(solver);
+        std::ptr::addr_of_mut!((*stepper).fused).write(fused);
         let sk = std::ptr::addr_of_mut!((*stepper).sk);
         (*sk).active_flags = solver.active_axes();
         (*sk).calc_position_cb = Some(calc_position);
@@ -131,11 +135,10 @@ unsafe extern "C" fn calc_position(
 ) -> f64 {
     // SAFETY: Klipper calls this only with a stepper allocated by `allocate` (so `sk` is the first field of a
     // JointspaceStepper) and a live move; it writes neither while the callback runs on this stepper.
-    let (solver, commanded, m) = unsafe {
-        let stepper = &*sk.cast::<JointspaceStepper>();
-        (stepper.solver, stepper.sk.commanded_pos, &*m)
-    };
-    solver.position(m, move_time, commanded)
+    let (stepper, m) = unsafe { (&*sk.cast::<JointspaceStepper>(), &*m) };
+    stepper
+        .solver
+        .position(m, move_time, stepper.sk.commanded_pos, stepper.fused)
 }
 
 /// `post_cb` of a bed that turns freely: keep the commanded angle within a turn, as Klipper's polar does.

@@ -49,7 +49,11 @@ fi
 if [ $BUILD = 1 ]; then
   (cd "$REPO" && cargo build --release -p klipper)
 fi
-[ -f "$REPO/target/release/libjointspace_klipper.so" ] || { echo "install.sh: $REPO/target/release/libjointspace_klipper.so is missing (run without --no-build)" >&2; exit 1; }
+LIBRARY=${CARGO_TARGET_DIR:-$REPO/target}/release/libjointspace_klipper.so
+[ -f "$LIBRARY" ] || { echo "install.sh: $LIBRARY is missing (run without --no-build)" >&2; exit 1; }
+if [ "$(realpath "$LIBRARY")" != "$(realpath -m "$REPO/target/release/libjointspace_klipper.so")" ]; then
+  echo "note: the library is outside this repository's target/: add 'library: $LIBRARY' to [jointspace]"
+fi
 ln -sfn "$HERE/jointspace.py" "$HOST_DIR/$LINK"
 if ex=$(exclude_file); then
   mkdir -p "$(dirname "$ex")"

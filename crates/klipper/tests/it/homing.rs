@@ -1,0 +1,204 @@
+//! Homing and refusals inside Klipper (batch mode: an endstop "triggers" at the end of its homing move).
+//! A SCARA with joint endstops homes each joint alone in joint space and then stands where forward kinematics
+//! puts the endstop angles; moves the machine cannot make are refused with Klipper's error and the reason.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::hosts::{Hosts, KLIPPER, Step, plugin_config, shared, write};
+
+/// FEKT's example arm (100/100 mm, ECR 3) with joint endstops at 30° (shoulder, homing towards −) and 90°
+/// (elbow motor, homing towards +), no declared `home_position`.
+fn scara_with_endstops(dir: &Path) -> Option<std::path::PathBuf> {
+    let base = shared().join("golden/scara-fekt-synthetic/printer.cfg");
+    if !base.is_file() {
+        return None;
+    }
+    let text = std::fs::read_to_string(&base).expect("config");
+    let a = text.replacen("position_endstop: 0\n", "position_endstop: 30\n", 1);
+    let b = a.replacen("position_endstop: 0\n", "position_endstop: 90\n", 1);
+    let b = b.replacen(
+        "homing_positive_dir: False\n\n[stepper_z]",
+        "homing_positive_dir: True\n\n[stepper_z]",
+        1,
+    );
+    assert!(b.contains("position_endstop: 90") && b.contains("homing_positive_dir: True"));
+    let edited = write(dir, "base.cfg", &b);
+    Some(plugin_config(
+        &edited,
+        &[
+            ("kinematics: scara", "kinematics: jointspace_scara"),
+            ("home_position: 0, 200, 0", ""),
+        ],
+        dir,
+        "printer.cfg",
+    ))
+}
+
+/// Motor angles (rad) of a point for the FEKT arm, closed form (REFERENCE.md §2), left elbow.
+fn fekt_inverse(x: f64, y: f64) -> (f64, f64) {
+    let (l1, l2, ecr) = (100.0_f64, 100.0_f64, 3.0);
+    let cos_q2 = (x * x + y * y - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+    let q2 = cos_q2.acos();
+    let q1 = y.atan2(x) - (l2 * q2.sin()).atan2(l1 + l2 * q2.cos());
+    (q1, q2 + q1 / ecr)
+}
+
+/// Nozzle position of motor angles (rad), closed form.
+fn fekt_forward(a: f64, b: f64) -> (f64, f64) {
+    let (q1, q2) = (a, b - a / 3.0);
+    (
+        100.0 * q1.cos() + 100.0 * (q1 + q2).cos(),
+        100.0 * q1.sin() + 100.0 * (q1 + q2).sin(),
+    )
+}
+
+/// Net steps (sum of ±1) after `after` (MCU clock).
+fn net_after(steps: &[Step], after: i64) -> i64 {
+    steps
+        .iter()
+        .filter(|s| s.0 > after)
+        .map(|s| if s.1 == 1 { 1 } else { -1 })
+        .sum()
+}
+
+#[test]
+fn scara_homes_each_joint_in_joint_space() {
+    let Some(hosts) = Hosts::get("scara_homes_each_joint_in_joint_space") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let Some(config) = scara_with_endstops(dir.path()) else {
+        return;
+    };
+    // After homing, a pause (so the steps of the move are told apart by time), then one move.
+    let gcode = write(
+        dir.path(),
+        "home.gcode",
+        "G28 X Y\nGET_POSITION\nG4 P2000\nG1 X50 Y120 F3000\nM400\n",
+    );
+    let mut outputs = Vec::new();
+    for attempt in 0..3 {
+        let run = hosts.batch(
+            KLIPPER,
+            true,
+            &config,
+            &gcode,
+            &dir.path().join(format!("run{attempt}")),
+        );
+        run.expect_success("homing");
+        outputs.push((run.queue_step(), run.steps(), run.log));
+    }
+    // Three runs (Klipper steps motors on several threads): identical output.
+    assert!(outputs.iter().all(|o| o.0 == outputs[0].0), "runs differ");
+    let (_, steps, log) = &outputs[0];
+    let (a, b) = (&steps["stepper_a"], &steps["stepper_b"]);
+    // Homing ends at the first pause of over a second (the dwell) after the elbow motor's first step.
+    let mut clocks: Vec<i64> = a.iter().chain(b.iter()).map(|s| s.0).collect();
+    clocks.sort_unstable();
+    let pause = 16_000_000;
+    let homing_end = clocks
+        .windows(2)
+        .find(|w| w[0] >= b[0].0 && w[1] - w[0] > pause)
+        .map(|w| w[0])
+        .expect("a pause after homing");
+    // Joint space: the shoulder homes alone, then the elbow motor alone.
+    let a_homing: Vec<&Step> = a.iter().filter(|s| s.0 <= homing_end).collect();
+    let a_last = a_homing.last().expect("shoulder homing steps").0;
+    assert!(
+        a_homing.len() > 4000,
+        "the shoulder made {} homing steps",
+        a_homing.len()
+    );
+    assert!(
+        a_last < b[0].0,
+        "the shoulder was still moving when the elbow motor started"
+    );
+    assert!(
+        b.iter().filter(|s| s.0 <= homing_end).count() > 7000,
+        "the elbow motor did not home"
+    );
+    // The pose after homing is forward kinematics of the endstop angles.
+    let (x, y) = fekt_forward(30f64.to_radians(), 90f64.to_radians());
+    let reported = log
+        .lines()
+        .find(|l| l.starts_with("toolhead:"))
+        .expect("GET_POSITION's toolhead line");
+    let expected = format!("toolhead: X:{x:.6} Y:{y:.6}");
+    assert!(
+        reported.starts_with(&expected),
+        "{reported} (expected {expected})"
+    );
+    // The move after homing: each motor's net steps are the closed-form angle change.
+    let step = std::f64::consts::TAU / (200.0 * 16.0 * 3.0);
+    let (a1, b1) = fekt_inverse(50.0, 120.0);
+    let (a0, b0) = (30f64.to_radians(), 90f64.to_radians());
+    let start = homing_end + pause;
+    let nets: BTreeMap<&str, (i64, f64)> = [
+        ("stepper_a", (net_after(a, start), (a1 - a0) / step)),
+        ("stepper_b", (net_after(b, start), (b1 - b0) / step)),
+    ]
+    .into();
+    for (motor, (net, expected)) in nets {
+        assert!(
+            (net as f64 - expected).abs() <= 1.0,
+            "{motor}: {net} steps, expected {expected:.2}"
+        );
+    }
+}
+
+#[test]
+fn unreachable_moves_are_refused_with_the_reason() {
+    let Some(hosts) = Hosts::get("unreachable_moves_are_refused_with_the_reason") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let Some(scara) = scara_with_endstops(dir.path()) else {
+        return;
+    };
+    let polar = plugin_config(
+        &shared().join("golden/polar-synthetic/printer.cfg"),
+        &[("kinematics: polar", "kinematics: jointspace_polar")],
+        dir.path(),
+        "polar.cfg",
+    );
+    // Each refused move leaves the toolhead where it was; Klipper goes on with the next line.
+    let cases: [(&Path, &str, &[&str]); 2] = [
+        (
+            &scara,
+            "SET_KINEMATIC_POSITION X=0 Y=130 Z=0.5\nG1 X0 Y30 F3000\nG1 X0 Y250\nG1 X-50 Y120\nG1 X0 Y205\n",
+            // Y250 lies beyond reach, but the move meets the straight-arm singular band first.
+            &[
+                "inside the minimum radius",
+                "too close to a singular pose",
+                "Move out of range",
+            ],
+        ),
+        (
+            &polar,
+            "SET_KINEMATIC_POSITION X=300 Y=0 Z=0.5\nG1 X100 Y0 F3000\nG1 X-100 Y0\nG1 X350 Y0\n",
+            &["rotation centre", "outside its limits", "Move out of range"],
+        ),
+    ];
+    for (i, (config, gcode, phrases)) in cases.into_iter().enumerate() {
+        let input = write(dir.path(), &format!("refused{i}.gcode"), gcode);
+        let run = hosts.batch(
+            KLIPPER,
+            false,
+            config,
+            &input,
+            &dir.path().join(format!("refused{i}")),
+        );
+        assert!(
+            !run.success,
+            "case {i}: refused moves must fail the batch run"
+        );
+        for phrase in phrases {
+            assert!(
+                run.log.contains(phrase),
+                "case {i}: no '{phrase}' in the log:\n{}",
+                crate::hosts::tail(&run.log, 30)
+            );
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! `klipper/install.sh` into fresh git checkouts of Klipper and Kalico, then `--uninstall`: each leaves
+//! `git status` clean (Moonraker reports a dirty tree otherwise), and the module lands where the host loads it.
+
+use std::path::Path;
+use std::process::Command;
+
+use crate::hosts::{install, shared, workspace_root};
+
+fn git(tree: &Path, args: &[&str]) -> String {
+    let output = Command::new("git")
+        .args([
+            "-c",
+            "user.name=test",
+            "-c",
+            "user.email=test@invalid",
+            "-c",
+            "init.defaultBranch=main",
+        ])
+        .args(args)
+        .current_dir(tree)
+        .output()
+        .expect("git runs");
+    assert!(
+        output.status.success(),
+        "git {args:?}: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+fn install_and_uninstall(host: &str, module_folder: &str) {
+    let tarball = shared().join(format!("klipper/{host}.tar.gz"));
+    if !tarball.is_file() {
+        println!(
+            "install into {host}: skipped: {} is absent",
+            tarball.display()
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let unpacked = Command::new("tar")
+        .arg("-xzf")
+        .arg(&tarball)
+        .arg("-C")
+        .arg(dir.path())
+        .status()
+        .expect("tar runs");
+    assert!(unpacked.success());
+    let tree = dir.path().join(host);
+    git(&tree, &["init", "-q"]);
+    git(&tree, &["add", "-A"]);
+    git(&tree, &["commit", "-qm", "pristine"]);
+
+    install(&tree, false);
+    let link = tree.join(module_folder).join("jointspace.py");
+    let target = std::fs::read_link(&link).expect("the module is a symlink");
+    assert_eq!(
+        target.canonicalize().expect("link target"),
+        workspace_root()
+            .join("klipper/jointspace.py")
+            .canonicalize()
+            .expect("module")
+    );
+    // Python leaves a compiled copy beside the link when the host imports it.
+    let cache = tree.join(module_folder).join("__pycache__");
+    std::fs::create_dir_all(&cache).expect("cache folder");
+    std::fs::write(cache.join("jointspace.cpython-311.pyc"), b"").expect("pyc");
+    assert_eq!(
+        git(&tree, &["status", "--porcelain"]),
+        "",
+        "{host}: dirty after install"
+    );
+    install(&tree, false); // twice: still one line each in the exclude file
+    let exclude = std::fs::read_to_string(tree.join(".git/info/exclude")).expect("exclude");
+    assert_eq!(exclude.matches("jointspace.py").count(), 1, "{exclude}");
+
+    install(&tree, true);
+    assert!(
+        !link.exists() && link.symlink_metadata().is_err(),
+        "{host}: module left behind"
+    );
+    assert!(!cache.join("jointspace.cpython-311.pyc").exists());
+    assert_eq!(
+        git(&tree, &["status", "--porcelain"]),
+        "",
+        "{host}: dirty after uninstall"
+    );
+    let exclude = std::fs::read_to_string(tree.join(".git/info/exclude")).expect("exclude");
+    assert!(
+        !exclude.contains("jointspace"),
+        "{host}: exclude lines left: {exclude}"
+    );
+}
+
+#[test]
+fn install_into_klipper_leaves_git_clean() {
+    install_and_uninstall("klipper", "klippy/extras");
+}
+
+#[test]
+fn install_into_kalico_leaves_git_clean() {
+    install_and_uninstall("kalico", "klippy/plugins");
+}

@@ -1,0 +1,15 @@
+//! The plug-in inside the real hosts: Klipper, Kalico and the FEKT-SCARA fork from `../shared/klipper`, run in
+//! batch mode, compared with their own kinematics, with the FEKT golden steps and with jointspace's own engine.
+//! Plus the library's own contract (struct layout against each host's header, solvers against closed forms).
+
+// The tests call the library's C interface as the hosts do.
+#![allow(unsafe_code)]
+
+mod engine;
+mod homing;
+mod hosts;
+mod install;
+mod layout;
+mod polar;
+mod scara;
+mod solvers;

@@ -13,7 +13,7 @@ use crate::hosts::{
 };
 
 /// The `jointspace` binary (built by the workspace's tests; built here if this crate is tested alone).
-fn jointspace() -> PathBuf {
+pub fn jointspace() -> PathBuf {
     // Up to date even when only this crate's tests were built (a no-op after `cargo test --workspace`).
     let status = Command::new(env!("CARGO"))
         .args(["build", "--release", "-p", "cli"])

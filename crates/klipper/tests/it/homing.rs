@@ -202,3 +202,42 @@ fn unreachable_moves_are_refused_with_the_reason() {
         }
     }
 }
+
+/// FEKT-SCARA's homing: with `home_position` the XY joints are declared at that pose (no motion), as the FEKT
+/// module does; the status Mainsail shows under `printer.toolhead` then holds the joint angles, the reach margin
+/// and the offsets.
+#[test]
+fn declared_home_and_status() {
+    let Some(hosts) = Hosts::get("declared_home_and_status") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let base = shared().join("golden/scara-fekt-synthetic/printer.cfg");
+    let config = plugin_config(
+        &base,
+        &[
+            ("kinematics: scara", "kinematics: jointspace_scara"),
+            ("home_position: 0, 200, 0", "home_position: 0, 141.4213562373095, 0"),
+        ],
+        dir.path(),
+        "printer.cfg",
+    );
+    let mut text = std::fs::read_to_string(&config).expect("config");
+    text.push_str(
+        "\n[gcode_macro SHOW_JOINTSPACE]\ngcode:\n  {action_respond_info(\"status %s %s %s\" % (\
+         printer.toolhead.jointspace_joints, printer.toolhead.jointspace_reach_margin, \
+         printer.toolhead.jointspace_offsets))}\n",
+    );
+    std::fs::write(&config, text).expect("write");
+    let gcode = write(dir.path(), "home.gcode", "G28\nGET_POSITION\nSHOW_JOINTSPACE\nG1 X20 Y150 F3000\nM400\n");
+    let run = hosts.batch(KLIPPER, false, &config, &gcode, &dir.path().join("out"));
+    run.expect_success("declared home");
+    assert!(run.log.contains("toolhead: X:0.000000 Y:141.421356 Z:0.500000"), "{}", crate::hosts::tail(&run.log, 20));
+    // q1 = 45°, q2 = 90°: the elbow motor reads 90 + 45/3 = 105°. 141.42 mm from the shoulder; the base
+    // protection 60 mm inside, the singular band (|sin q2| < 0.05) from √(2·10⁴·(1 + √(1 − 0.05²))) =
+    // 199.937 mm outside: margin 58.516 mm.
+    let status = run.log.lines().find(|l| l.contains("status {")).expect("status line");
+    for needed in ["'stepper_a': 45.0", "'stepper_b': 105.0", " 58.516", "'offset_x': 0.0"] {
+        assert!(status.contains(needed), "{needed} not in {status}");
+    }
+}

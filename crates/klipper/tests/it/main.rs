@@ -6,6 +6,7 @@
 #![allow(unsafe_code)]
 
 mod engine;
+mod examples;
 mod homing;
 mod hosts;
 mod install;

@@ -463,12 +463,17 @@ class PolarKinematics(JointspaceKinematics):
 
     def __init__(self, toolhead, config):
         JointspaceKinematics.__init__(self, toolhead, config, "jointspace_polar")
-        # Created in Klipper's order (bed, arm, z), so the MCU objects get the same ids.
-        stepper_bed = stepper.PrinterStepper(config.getsection("stepper_bed"),
-                                             units_in_radians=True)
+        # Created in Klipper's order (bed, arm, z), so the MCU objects get the same ids. A bed with an endstop
+        # is a rail that homes (in degrees) after the arm; without one it is declared at angle 0.
+        bed_section = config.getsection("stepper_bed")
+        if bed_section.get("endstop_pin", None, note_valid=False) is not None:
+            stepper_bed = stepper.LookupMultiRail(bed_section, units_in_radians=True)
+            self.joint_rails["stepper_bed"] = stepper_bed
+        else:
+            stepper_bed = stepper.PrinterStepper(bed_section, units_in_radians=True)
         rail_arm = _rail(config.getsection("stepper_arm"))
         self.rail_z = stepper.LookupMultiRail(config.getsection("stepper_z"))
-        self.joint_rails = {"stepper_arm": rail_arm}
+        self.joint_rails["stepper_arm"] = rail_arm
         max_xy = rail_arm.get_range()[1]
         self._attach(toolhead, [("stepper_bed", stepper_bed), ("stepper_arm", rail_arm),
                                 ("stepper_z", self.rail_z)],
@@ -483,13 +488,16 @@ class PolarKinematics(JointspaceKinematics):
         }
 
     def joint_scale(self, name):
-        # Toolhead units per motor unit while homing: the arm in mm, the bed's reading in radians.
-        return 1.
+        # Motor units per toolhead unit while homing: the arm in mm, the bed's reading in degrees.
+        return math.pi / 180. if name == "stepper_bed" else 1.
 
     def home_xy(self, homing_state):
-        # The arm runs to its endstop; the bed has none and is declared at angle 0 (as Klipper's polar does).
-        joints = self.home_in_joint_space(homing_state, [0], [0., 0.])
-        self.set_homed_pose(homing_state, self.machine.forward([0., joints[0], 0.]))
+        # The arm runs to its endstop, then the bed to its own if it has one; otherwise the bed is declared at
+        # angle 0 (as Klipper's polar does).
+        order = [0, 1] if "stepper_bed" in self.joint_rails else [0]
+        joints = self.home_in_joint_space(homing_state, order, [0., 0.])
+        bed = math.radians(joints[1])
+        self.set_homed_pose(homing_state, self.machine.forward([bed, joints[0], 0.]))
 
     def klipper_centre_slowdown(self, move):
         # Klipper's own rule (polar.py): slow the whole move by the bed speed at its closest approach,

@@ -21,8 +21,15 @@ fn example(name: &str, gcode: &str) {
     for host in [KLIPPER, KALICO] {
         let run = hosts.batch(host, false, &config, &input, &dir.path().join(host));
         run.expect_success(&format!("{name} on {host}"));
-        let messages = run.queue_step().lines().filter(|l| l.starts_with("queue_step")).count();
-        assert!(messages > 50, "{name} on {host}: only {messages} step messages");
+        let messages = run
+            .queue_step()
+            .lines()
+            .filter(|l| l.starts_with("queue_step"))
+            .count();
+        assert!(
+            messages > 50,
+            "{name} on {host}: only {messages} step messages"
+        );
     }
     check_with_cli(&config, &input);
 }

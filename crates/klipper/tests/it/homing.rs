@@ -217,7 +217,10 @@ fn declared_home_and_status() {
         &base,
         &[
             ("kinematics: scara", "kinematics: jointspace_scara"),
-            ("home_position: 0, 200, 0", "home_position: 0, 141.4213562373095, 0"),
+            (
+                "home_position: 0, 200, 0",
+                "home_position: 0, 141.4213562373095, 0",
+            ),
         ],
         dir.path(),
         "printer.cfg",
@@ -229,15 +232,84 @@ fn declared_home_and_status() {
          printer.toolhead.jointspace_offsets))}\n",
     );
     std::fs::write(&config, text).expect("write");
-    let gcode = write(dir.path(), "home.gcode", "G28\nGET_POSITION\nSHOW_JOINTSPACE\nG1 X20 Y150 F3000\nM400\n");
+    let gcode = write(
+        dir.path(),
+        "home.gcode",
+        "G28\nGET_POSITION\nSHOW_JOINTSPACE\nG1 X20 Y150 F3000\nM400\n",
+    );
     let run = hosts.batch(KLIPPER, false, &config, &gcode, &dir.path().join("out"));
     run.expect_success("declared home");
-    assert!(run.log.contains("toolhead: X:0.000000 Y:141.421356 Z:0.500000"), "{}", crate::hosts::tail(&run.log, 20));
+    assert!(
+        run.log
+            .contains("toolhead: X:0.000000 Y:141.421356 Z:0.500000"),
+        "{}",
+        crate::hosts::tail(&run.log, 20)
+    );
     // q1 = 45°, q2 = 90°: the elbow motor reads 90 + 45/3 = 105°. 141.42 mm from the shoulder; the base
     // protection 60 mm inside, the singular band (|sin q2| < 0.05) from √(2·10⁴·(1 + √(1 − 0.05²))) =
     // 199.937 mm outside: margin 58.516 mm.
-    let status = run.log.lines().find(|l| l.contains("status {")).expect("status line");
-    for needed in ["'stepper_a': 45.0", "'stepper_b': 105.0", " 58.516", "'offset_x': 0.0"] {
+    let status = run
+        .log
+        .lines()
+        .find(|l| l.contains("status {"))
+        .expect("status line");
+    for needed in [
+        "'stepper_a': 45.0",
+        "'stepper_b': 105.0",
+        " 58.516",
+        "'offset_x': 0.0",
+    ] {
         assert!(status.contains(needed), "{needed} not in {status}");
     }
+}
+
+/// A polar bed with an endstop homes after the arm, in degrees; the pose is forward kinematics of both.
+#[test]
+fn polar_bed_with_an_endstop_homes_after_the_arm() {
+    let Some(hosts) = Hosts::get("polar_bed_with_an_endstop_homes_after_the_arm") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = plugin_config(
+        &shared().join("golden/polar-synthetic/printer.cfg"),
+        &[
+            ("kinematics: polar", "kinematics: jointspace_polar"),
+            (
+                "gear_ratio: 80:16",
+                "gear_ratio: 80:16\nendstop_pin: ^PE5\nposition_endstop: 90\nposition_min: -360\n\
+                 position_max: 360\nhoming_speed: 30\nhoming_positive_dir: true",
+            ),
+        ],
+        dir.path(),
+        "printer.cfg",
+    );
+    let gcode = write(
+        dir.path(),
+        "home.gcode",
+        "G28\nGET_POSITION\nG1 X0 Y250 F3000\nM400\n",
+    );
+    let run = hosts.batch(KLIPPER, false, &config, &gcode, &dir.path().join("out"));
+    run.expect_success("bed homing");
+    // Bed at 90°, arm at its 300 mm endstop: (300·cos 90°, 300·sin 90°).
+    let expected = format!(
+        "toolhead: X:{:.6} Y:300.000000",
+        300.0 * 90f64.to_radians().cos()
+    );
+    assert!(
+        run.log.contains(&expected),
+        "{expected}: {}",
+        crate::hosts::tail(&run.log, 20)
+    );
+    let queue = run.queue_step();
+    let oid = queue
+        .lines()
+        .find(|l| l.starts_with("config_stepper") && l.contains("step_pin=PF0"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .expect("the bed's config_stepper")
+        .to_string();
+    let bed_steps = queue
+        .lines()
+        .filter(|l| l.starts_with(&format!("queue_step {oid} ")))
+        .count();
+    assert!(bed_steps > 0, "the bed did not move while homing");
 }

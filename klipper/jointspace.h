@@ -31,6 +31,9 @@ int jointspace_inverse(struct jointspace_machine *m, const double *xyz, const do
 int jointspace_check_move(struct jointspace_machine *m, double start_x, double start_y, double start_z,
                           double end_x, double end_y, double end_z, double speed, double accel,
                           double *limits, char *error, size_t error_len);
+int jointspace_move_waypoints(struct jointspace_machine *m, double start_x, double start_y, double start_z,
+                              double end_x, double end_y, double end_z, double speed, double accel,
+                              double bed_angle, double *out, int max);
 int jointspace_declared_home(struct jointspace_machine *m, double *xyz);
 int jointspace_reach_margin(struct jointspace_machine *m, double x, double y, double z, double *margin);
 #endif

@@ -593,16 +593,74 @@ def _register(name, loader):
         sys.modules[prefix + name] = module
 
 
+MAX_WAYPOINTS = 4096
+
+
+class MoveSplitter:
+    """The G-code move transform: cuts each move where jointspace's planner limits change (near the polar centre,
+    SCARA singular poses, step-rate limits), so check_move caps only the pieces that need it, and turns a polar bed
+    in place on a 0.005 mm circle where a move passes through the centre or leaves it in a new direction. Chained:
+    the pieces go to the transform that was there before (bed_mesh, skew_correction...) or the toolhead."""
+
+    def __init__(self, printer, kin):
+        self.printer = printer
+        self.kin = kin
+        self.toolhead = printer.lookup_object("toolhead")
+        machine = kin.machine
+        self.ffi, self.lib, self.handle = machine.ffi, machine.lib, machine.handle
+        self.buffer = self.ffi.new("double[]", 3 * MAX_WAYPOINTS)
+        self.bed_angle = 0.
+        gcode_move = printer.lookup_object("gcode_move")
+        self.next_transform = gcode_move.set_move_transform(self, force=True)
+
+    def get_position(self):
+        return self.next_transform.get_position()
+
+    def move(self, newpos, speed):
+        start = self.next_transform.get_position()
+        if newpos[0] == start[0] and newpos[1] == start[1]:
+            self.next_transform.move(newpos, speed)
+            return
+        if start[0] != 0. or start[1] != 0.:
+            self.bed_angle = math.atan2(start[1], start[0])
+        count = self.lib.jointspace_move_waypoints(
+            self.handle, start[0], start[1], start[2], newpos[0], newpos[1], newpos[2], speed,
+            self.toolhead.max_accel, self.bed_angle, self.buffer, MAX_WAYPOINTS)
+        if count <= 1:
+            # Nothing to cut (or more pieces than worth it): the move stays whole and check_move caps it.
+            self.next_transform.move(newpos, speed)
+            return
+        b = self.buffer
+        for i in range(count - 1):
+            f = b[3 * i + 2]
+            pos = [b[3 * i], b[3 * i + 1]] + [s + (e - s) * f for s, e in zip(start[2:], newpos[2:])]
+            self.next_transform.move(pos, speed)
+            if pos[0] != 0. or pos[1] != 0.:
+                self.bed_angle = math.atan2(pos[1], pos[0])
+        self.next_transform.move(newpos, speed)
+
+
 class Jointspace:
     def __init__(self, config):
+        self.printer = config.get_printer()
         # Fail early, naming the path, if the library is missing or was built for another host.
         ffi, lib = load_library(config)
         self.version = ffi.string(lib.jointspace_version()).decode()
+        self.split_moves = config.getboolean("split_moves", True)
+        self.splitter = None
         _register("jointspace_polar", load_kinematics_polar)
         _register("jointspace_scara", load_kinematics_scara)
+        self.printer.register_event_handler("klippy:connect", self._handle_connect)
+
+    def _handle_connect(self):
+        kin = self.printer.lookup_object("toolhead").get_kinematics()
+        # centre_slowdown: klipper plans as Klipper's own polar does, whole moves only.
+        if (self.split_moves and isinstance(kin, JointspaceKinematics)
+                and kin.centre_slowdown == "exact"):
+            self.splitter = MoveSplitter(self.printer, kin)
 
     def get_status(self, eventtime):
-        return {"version": self.version}
+        return {"version": self.version, "split_moves": self.splitter is not None}
 
 
 def load_config(config):

@@ -17,6 +17,7 @@
 
 pub mod abi;
 pub mod machine;
+pub mod pieces;
 pub mod stepper;
 
 use std::ffi::{CStr, c_char, c_int};
@@ -358,4 +359,50 @@ pub unsafe extern "C" fn jointspace_reach_margin(
         }
         _ => -1,
     }
+}
+
+/// Where the plug-in's G-code move transform cuts the move `start → end` requested at `speed` and `accel`, so that
+/// Klipper slows only the pieces near a limit, and a polar bed turns in place at its centre (`bed_angle`: where the
+/// last move left the bed). Writes up to `max` waypoints as `x, y, fraction` triples (the fraction of the move
+/// each stands for, which Z and E follow; the last is the move's end) and returns how many, or −1 if more were
+/// needed.
+///
+/// # Safety
+/// `out` holds `3 · max` doubles.
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)] // scalars, so the Python side calls without building arrays per move
+pub unsafe extern "C" fn jointspace_move_waypoints(
+    m: *const Machine,
+    start_x: f64,
+    start_y: f64,
+    start_z: f64,
+    end_x: f64,
+    end_y: f64,
+    end_z: f64,
+    speed: f64,
+    accel: f64,
+    bed_angle: f64,
+    out: *mut f64,
+    max: c_int,
+) -> c_int {
+    let Some(m) = machine(m) else { return -1 };
+    let points = m.waypoints(
+        [start_x, start_y, start_z],
+        [end_x, end_y, end_z],
+        speed,
+        accel,
+        bed_angle,
+    );
+    if points.len() > usize::try_from(max).unwrap_or(0) {
+        return -1;
+    }
+    for (i, p) in points.iter().enumerate() {
+        // SAFETY: i < max, and out holds 3 · max doubles.
+        unsafe {
+            *out.add(3 * i) = p.x;
+            *out.add(3 * i + 1) = p.y;
+            *out.add(3 * i + 2) = p.fraction;
+        }
+    }
+    points.len() as c_int
 }

@@ -13,7 +13,12 @@ use kinematics::{Kinematics, MachineParams, MotorMap, ReachError};
 use motion::kinematic_limits::{MotorLimit, split};
 use motion::machine::MachineSetup;
 
+use crate::pieces::{Centre, Waypoint, waypoints};
 use crate::stepper::Solver;
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt()
+}
 
 /// A machine as the Klipper plug-in uses it. Immutable once built.
 #[derive(Debug)]
@@ -149,6 +154,33 @@ impl Machine {
         let speed = spans.iter().map(|s| s.max_speed).fold(speed, f64::min);
         let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
         Ok(MoveVerdict::Limited { speed, accel })
+    }
+
+    /// Where the G-code move transform cuts the move `start → end` (see [`crate::pieces`]); `bed_angle` is where
+    /// the last move left a polar bed.
+    pub fn waypoints(
+        &self,
+        start: [f64; 3],
+        end: [f64; 3],
+        speed: f64,
+        accel: f64,
+        bed_angle: f64,
+    ) -> Vec<Waypoint> {
+        let kin = self.kinematics();
+        let limits = self.motor_limits();
+        let cuts = |a: [f64; 3], b: [f64; 3]| {
+            let length = distance(a, b);
+            let spans = split(kin, limits, a, b, speed, accel);
+            spans.iter().map(|s| s.end / length).collect::<Vec<_>>()
+        };
+        let centre = match &self.shape {
+            Shape::Polar(polar) if polar.params().arm_lateral_offset == 0.0 => Some(Centre {
+                at: [0.0, 0.0],
+                bed_angle,
+            }),
+            _ => None,
+        };
+        waypoints(start, end, centre, &cuts)
     }
 
     fn motor_limits(&self) -> &[MotorLimit] {

@@ -43,7 +43,13 @@ pub fn waypoints(
     let mut points = Vec::new();
     match centre.and_then(|c| turn_in_place(start, end, c)) {
         Some(turn) => {
-            push_line(&mut points, start, turn.entry, (0.0, turn.entry_fraction), cuts);
+            push_line(
+                &mut points,
+                start,
+                turn.entry,
+                (0.0, turn.entry_fraction),
+                cuts,
+            );
             points.extend(turn.arc);
             points.push(Waypoint {
                 x: turn.exit[0],
@@ -73,7 +79,12 @@ fn push_line(
         fraction: span.0 + (span.1 - span.0) * f,
     };
     if a != b {
-        points.extend(cuts(a, b).into_iter().filter(|f| *f > 0.0 && *f < 1.0).map(at));
+        points.extend(
+            cuts(a, b)
+                .into_iter()
+                .filter(|f| *f > 0.0 && *f < 1.0)
+                .map(at),
+        );
     }
     points.push(at(1.0));
 }
@@ -113,7 +124,11 @@ fn turn_in_place(start: Vec3, end: Vec3, centre: Centre) -> Option<Turn> {
         // Out along the bed's current ray to the circle, around to the move's direction, then on.
         let heading = dy.atan2(dx);
         let exit_t = t2.min(1.0);
-        let entry = [cx + r * centre.bed_angle.cos(), cy + r * centre.bed_angle.sin(), start[2]];
+        let entry = [
+            cx + r * centre.bed_angle.cos(),
+            cy + r * centre.bed_angle.sin(),
+            start[2],
+        ];
         let turn = angle_between(centre.bed_angle, heading);
         if turn.abs() < 1e-12 {
             return None;
@@ -171,7 +186,9 @@ fn point(a: Vec3, b: Vec3, t: f64) -> Vec3 {
 /// Chord ends along the turning circle from angle `from` turning by `turn`, the last one excluded (the caller
 /// adds the exit); fractions spread over `span`.
 fn arc(centre: [f64; 2], from: f64, turn: f64, span: (f64, f64)) -> Vec<Waypoint> {
-    let chords = ((turn.abs() / std::f64::consts::PI) * TURN_CHORDS as f64).ceil().max(1.0) as usize;
+    let chords = ((turn.abs() / std::f64::consts::PI) * TURN_CHORDS as f64)
+        .ceil()
+        .max(1.0) as usize;
     (1..chords)
         .map(|i| {
             let f = i as f64 / chords as f64;

@@ -14,3 +14,4 @@ mod layout;
 mod polar;
 mod scara;
 mod solvers;
+mod splitting;

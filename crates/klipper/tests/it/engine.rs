@@ -7,6 +7,8 @@ use std::process::Command;
 
 use jointspace_klipper::abi::Move;
 use jointspace_klipper::machine::Machine;
+use stepgen::read_moves_csv;
+use trapq::{Piece, Queue};
 
 use crate::hosts::{
     Hosts, KLIPPER, Step, compare, plugin_config, read_step_dir, shared, target_dir, workspace_root,
@@ -24,72 +26,31 @@ pub fn jointspace() -> PathBuf {
     target_dir().join("jointspace")
 }
 
-/// One row of the moves CSV (Klipper's `trapq_append` columns) as the phases of a trapezoid.
-struct PlannedMove {
-    print_time: f64,
-    phases: [f64; 3],
-    start: [f64; 3],
-    axes_r: [f64; 3],
-    start_v: f64,
-    cruise_v: f64,
-    accel: f64,
-}
-
-fn read_moves(path: &Path) -> Vec<PlannedMove> {
-    let text = std::fs::read_to_string(path).expect("moves CSV");
-    text.lines()
-        .skip(1)
-        .filter(|l| l.starts_with("toolhead,"))
-        .map(|l| {
-            let v: Vec<f64> = l
-                .split(',')
-                .skip(1)
-                .map(|w| w.parse().expect("number"))
-                .collect();
-            PlannedMove {
-                print_time: v[0],
-                phases: [v[1], v[2], v[3]],
-                start: [v[4], v[5], v[6]],
-                axes_r: [v[7], v[8], v[9]],
-                start_v: v[10],
-                cruise_v: v[11],
-                accel: v[12],
-            }
-        })
+/// The toolhead's pieces of a moves CSV (jointspace's own reader of Klipper's `trapq_append` columns).
+fn toolhead_pieces(path: &Path) -> Vec<Piece> {
+    read_moves_csv(path)
+        .expect("moves CSV")
+        .iter()
+        .filter(|(q, _)| *q == Queue::Toolhead)
+        .flat_map(|(_, m)| m.pieces())
         .collect()
 }
 
-/// The toolhead at print time `t` as Klipper's trapq holds it: the phase of the planned move as a `Move`.
-fn phase_at(moves: &[PlannedMove], t: f64) -> Option<(Move, f64)> {
-    let m = moves
+/// The toolhead at print time `t` as Klipper's trapq holds it: the piece as a `Move`, and the time into it.
+fn phase_at(pieces: &[Piece], t: f64) -> Option<(Move, f64)> {
+    let p = pieces
         .iter()
         .rev()
-        .find(|m| m.print_time <= t && t <= m.print_time + m.phases.iter().sum::<f64>())?;
-    let [accel_t, cruise_t, _] = m.phases;
-    let accel_d = (m.start_v + 0.5 * m.accel * accel_t) * accel_t;
-    let (begin, v, a, before) = if t - m.print_time < accel_t {
-        (m.print_time, m.start_v, m.accel, 0.0)
-    } else if t - m.print_time < accel_t + cruise_t {
-        (m.print_time + accel_t, m.cruise_v, 0.0, accel_d)
-    } else {
-        let cruise_d = m.cruise_v * cruise_t;
-        (
-            m.print_time + accel_t + cruise_t,
-            m.cruise_v,
-            -m.accel,
-            accel_d + cruise_d,
-        )
-    };
-    let start = std::array::from_fn(|i| m.start[i] + m.axes_r[i] * before);
+        .find(|p| p.print_time <= t && t <= p.end_time())?;
     let phase = Move {
-        print_time: begin,
-        move_t: 1.0,
-        start_v: v,
-        half_accel: 0.5 * a,
-        start_pos: start,
-        axes_r: m.axes_r,
+        print_time: p.print_time,
+        move_t: p.duration,
+        start_v: p.start_v,
+        half_accel: p.half_accel,
+        start_pos: p.start_pos,
+        axes_r: p.axes_r,
     };
-    Some((phase, t - begin))
+    Some((phase, t - p.print_time))
 }
 
 /// Steps over a tick apart must be ones where Klipper's own search stops short: its itersolve accepts a time
@@ -102,7 +63,7 @@ fn assert_within_klippers_tolerance(
     start: [f64; 3],
     klipper: &std::collections::BTreeMap<String, Vec<Step>>,
     engine: &std::collections::BTreeMap<String, Vec<Step>>,
-    moves: &[PlannedMove],
+    moves: &[Piece],
 ) {
     let text = std::fs::read_to_string(config).expect("config");
     let machine = Machine::from_config_text(&text, false).expect("machine");
@@ -185,7 +146,14 @@ fn compare_with_engine(test: &str, config: &Path, start: [f64; 3], gcode: &Path,
         );
         beyond += c.beyond_tolerance;
     }
-    assert_within_klippers_tolerance(test, config, start, &klipper, &engine, &read_moves(&moves));
+    assert_within_klippers_tolerance(
+        test,
+        config,
+        start,
+        &klipper,
+        &engine,
+        &toolhead_pieces(&moves),
+    );
     println!(
         "{test}: plug-in in Klipper and jointspace run: same steps and directions, clocks within 1 tick \
          except {beyond} at Klipper's own search tolerance"

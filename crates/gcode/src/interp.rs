@@ -726,21 +726,22 @@ impl Interpreter {
         }
     }
 
-    /// G4: `P` milliseconds or `S` seconds.
+    /// G4: `P` milliseconds, as Klipper reads it. Klipper ignores `S` (Marlin's seconds), so a `G4 S30` in a
+    /// slicer's start code does not wait there: the same here, with a warning at the word.
     fn dwell(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
         self.check_letters(line, bit(b'P') | bit(b'S'));
-        let (word, scale) = match (line.word(b'P'), line.word(b'S')) {
-            (Some(p), _) => (Some(p), 1e-3),
-            (None, s) => (s, 1.0),
-        };
-        let seconds = match word {
+        if let Some(s) = line.word(b'S') {
+            let message = "G4 S (seconds) is ignored, as Klipper ignores it: use P (milliseconds) to wait";
+            self.warn(Some(s.span), WarningKind::UnknownParameter, message);
+        }
+        let seconds = match line.word(b'P') {
             None => 0.0,
             Some(word) => {
                 let value = required(word)?;
                 if value < 0.0 {
                     return Err(Box::new((word.span, ErrorKind::NegativeDwell)));
                 }
-                value * scale
+                value * 1e-3
             }
         };
         Ok(Command::Dwell { seconds })
@@ -1399,14 +1400,24 @@ mod tests {
         assert_eq!((err.kind, err.span.column), (ErrorKind::InvalidFeedRate, 7));
         assert_eq!(first_error("G1 F-10").kind, ErrorKind::InvalidFeedRate);
         assert_eq!(first_error("G4 P-1").kind, ErrorKind::NegativeDwell);
-        let (commands, _) = run("G4 P250\nG4 S2\n");
+        // Klipper reads only P: `G4 S2` does not wait, and says so at the word.
+        let (commands, interpreter) = run("G4 P250\nG4 S2\nG4 P100 S5\n");
         assert_eq!(
             commands,
             vec![
                 Command::Dwell { seconds: 0.25 },
-                Command::Dwell { seconds: 2.0 }
+                Command::Dwell { seconds: 0.0 },
+                Command::Dwell { seconds: 0.1 }
             ]
         );
+        let s_warnings: Vec<_> = interpreter
+            .warnings()
+            .list()
+            .iter()
+            .filter(|w| w.message.contains("G4 S"))
+            .map(|w| (w.span.line, w.span.column))
+            .collect();
+        assert_eq!(s_warnings, vec![(2, 4), (3, 9)]);
     }
 
     #[test]

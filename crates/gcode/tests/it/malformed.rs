@@ -68,7 +68,6 @@ fn cases() -> Vec<(&'static [u8], ErrorKind, u64, u32)> {
         (b"G2 X0 Y0 I0 J0", ErrorKind::ArcZeroRadius, 1, 1),
         (b"G18\nG3 X1 Z1 I1", ErrorKind::ArcPlaneUnsupported, 2, 1),
         (b"G4 P-5", ErrorKind::NegativeDwell, 1, 4),
-        (b"G4 S-0.5", ErrorKind::NegativeDwell, 1, 4),
         (b"M220 S0", ErrorKind::InvalidParameter("S".into()), 1, 6),
         (
             b"SET_VELOCITY_LIMIT ACCEL=fast",

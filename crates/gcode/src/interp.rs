@@ -731,7 +731,8 @@ impl Interpreter {
     fn dwell(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
         self.check_letters(line, bit(b'P') | bit(b'S'));
         if let Some(s) = line.word(b'S') {
-            let message = "G4 S (seconds) is ignored, as Klipper ignores it: use P (milliseconds) to wait";
+            let message =
+                "G4 S (seconds) is ignored, as Klipper ignores it: use P (milliseconds) to wait";
             self.warn(Some(s.span), WarningKind::UnknownParameter, message);
         }
         let seconds = match line.word(b'P') {

@@ -14,5 +14,5 @@ pub mod machine;
 pub mod toolhead;
 
 pub use driver::{PlanError, PlanErrorKind, Planner, Warning};
-pub use limits::{ExtruderLimits, PlannerConfig, VelocityLimits};
+pub use limits::{ExtruderLimits, Host, PlannerConfig, VelocityLimits};
 pub use toolhead::{MoveError, SlowMove, SlowMoves, Toolhead};

@@ -88,7 +88,25 @@ pub struct PlannerConfig {
     pub skip_unreachable: bool,
 }
 
+/// The Klipper-family host whose planning to reproduce (for comparisons with its batch-mode output).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Host {
+    /// Klipper: Z speed limits apply, the first move starts at `buffer_time_start`.
+    #[default]
+    Klipper,
+    /// The FEKT-SCARA Kalico fork: no Z speed limits (its SCARA module applies none), and the first move starts one
+    /// `kin_flush_delay` after the start buffer (it flushes step generation on `SET_KINEMATIC_POSITION`).
+    KalicoFekt,
+}
+
 impl PlannerConfig {
+    /// Plan as `host` does where hosts differ.
+    pub fn behave_as(&mut self, host: Host) {
+        let fekt = host == Host::KalicoFekt;
+        self.apply_z_limits = !fekt;
+        self.initial_step_gen_time = if fekt { self.buffer_time_start } else { 0.0 };
+    }
+
     /// Klipper's defaults around the given velocity limits, with an extruder-less, Z-limited machine.
     pub fn klipper(limits: VelocityLimits) -> Self {
         PlannerConfig {

@@ -33,6 +33,27 @@ pub struct RunArgs {
     /// Reproduce Klipper's batch-mode flushing (`klippy.py -i`), for comparisons with Klipper's output.
     #[arg(long)]
     pub klipper_batch: bool,
+    /// The host whose planning to reproduce: `klipper`, or `kalico-fekt` (the FEKT-SCARA fork: no Z speed limits,
+    /// first move at 0.251 s).
+    #[arg(long, value_enum, default_value_t = HostArg::Klipper)]
+    pub host: HostArg,
+}
+
+/// `--host`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum HostArg {
+    #[default]
+    Klipper,
+    KalicoFekt,
+}
+
+impl From<HostArg> for motion::Host {
+    fn from(h: HostArg) -> Self {
+        match h {
+            HostArg::Klipper => motion::Host::Klipper,
+            HostArg::KalicoFekt => motion::Host::KalicoFekt,
+        }
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -152,6 +173,7 @@ pub struct RunOptions {
     pub clock_hz: f64,
     pub skip_unreachable: bool,
     pub klipper_batch: bool,
+    pub host: motion::Host,
 }
 
 pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
@@ -165,6 +187,7 @@ pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
         clock_hz: args.clock_hz,
         skip_unreachable: args.skip_unreachable,
         klipper_batch: args.klipper_batch,
+        host: args.host.into(),
     };
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let result = execute(
@@ -216,6 +239,7 @@ pub fn execute(
     let started = Instant::now();
     setup.planner.skip_unreachable = options.skip_unreachable;
     setup.planner.klipper_batch_flush = options.klipper_batch;
+    setup.planner.behave_as(options.host);
     let extruder = machine.extruder.as_ref().map(|e| ExtruderSpec {
         name: e.stepper.name.clone(),
         step_distance: e.stepper.step_distance,

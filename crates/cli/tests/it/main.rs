@@ -5,6 +5,7 @@ mod catalogue;
 mod common;
 mod determinism;
 mod fuzz_regressions;
+mod host;
 mod interrupt;
 mod limits;
 mod output;

@@ -40,8 +40,7 @@ fn plan_case(case: &Path) -> Vec<(Queue, TrapezoidMove)> {
     if machine.kinematics == config::KinematicsKind::Scara {
         // The golden SCARA cases come from the FEKT-SCARA Kalico fork: no Z speed limits, and its first move
         // starts one kin_flush_delay after the start buffer (golden/README.md).
-        setup.planner.apply_z_limits = false;
-        setup.planner.initial_step_gen_time = setup.planner.buffer_time_start;
+        setup.planner.behave_as(motion::Host::KalicoFekt);
     }
     let mut rows = Vec::new();
     let sink = |queue: Queue, mv: &TrapezoidMove| rows.push((queue, *mv));

@@ -11,18 +11,12 @@ use stepgen::read_moves_csv;
 use trapq::{Piece, Queue};
 
 use crate::hosts::{
-    Hosts, KLIPPER, Step, compare, plugin_config, read_step_dir, shared, target_dir, workspace_root,
+    Hosts, KLIPPER, Step, cargo_build, compare, plugin_config, read_step_dir, shared, target_dir,
 };
 
 /// The `jointspace` binary (built by the workspace's tests; built here if this crate is tested alone).
 pub fn jointspace() -> PathBuf {
-    // Up to date even when only this crate's tests were built (a no-op after `cargo test --workspace`).
-    let status = Command::new(env!("CARGO"))
-        .args(["build", "--release", "-p", "cli"])
-        .current_dir(workspace_root())
-        .status()
-        .expect("cargo runs");
-    assert!(status.success(), "building the jointspace binary failed");
+    cargo_build("cli");
     target_dir().join("jointspace")
 }
 

@@ -37,6 +37,7 @@ fn install_and_uninstall(host: &str, module_folder: &str) {
         );
         return;
     }
+    crate::hosts::cargo_build("klipper"); // install.sh --no-build wants the library
     let dir = tempfile::tempdir().expect("temp dir");
     let unpacked = Command::new("tar")
         .arg("-xzf")

@@ -34,6 +34,8 @@ int jointspace_check_move(struct jointspace_machine *m, double start_x, double s
 int jointspace_move_waypoints(struct jointspace_machine *m, double start_x, double start_y, double start_z,
                               double end_x, double end_y, double end_z, double speed, double accel,
                               double bed_angle, double *out, int max);
+int jointspace_scara_pattern(struct jointspace_machine *m, int count, double cross_size, char *gcode,
+                             size_t gcode_len, char *template_text, size_t template_len);
 int jointspace_declared_home(struct jointspace_machine *m, double *xyz);
 int jointspace_reach_margin(struct jointspace_machine *m, double x, double y, double z, double *margin);
 #endif

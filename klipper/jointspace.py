@@ -553,6 +553,9 @@ class ScaraKinematics(JointspaceKinematics):
                     "or [printer] needs home_position (the pose homing declares)" % (name,))
         self.rail_z = stepper.LookupMultiRail(config.getsection("stepper_z"))
         self.offsets = {k: config.getfloat(k, 0.) for k in ("offset_x", "offset_y")}
+        self.printer.lookup_object("gcode").register_command(
+            "JOINTSPACE_SCARA_PATTERN", self.cmd_JOINTSPACE_SCARA_PATTERN,
+            desc=self.cmd_JOINTSPACE_SCARA_PATTERN_help)
         reach = config.getfloat("link1_length") + config.getfloat("link2_length")
         ox, oy = self.offsets["offset_x"], self.offsets["offset_y"]
         self._attach(toolhead, list(zip(self.joint_names, joints)) + [("stepper_z", self.rail_z)],
@@ -572,6 +575,32 @@ class ScaraKinematics(JointspaceKinematics):
         joints = self.home_in_joint_space(homing_state, [0, 1], [0., 0.])
         motors = [math.radians(joints[0]), math.radians(joints[1]), 0.]
         self.set_homed_pose(homing_state, self.machine.forward(motors))
+
+
+    cmd_JOINTSPACE_SCARA_PATTERN_help = (
+        "Print crosses at well-conditioned arm poses and write the measurements file to fill in "
+        "(then: jointspace calibrate scara --measurements FILE)")
+
+    def cmd_JOINTSPACE_SCARA_PATTERN(self, gcmd):
+        poses = gcmd.get_int("POSES", 12, minval=4, maxval=64)
+        cross = gcmd.get_float("CROSS", 6., above=1., maxval=30.)
+        ffi, lib = self.machine.ffi, self.machine.lib
+        gcode = ffi.new("char[]", 1 << 18)
+        template = ffi.new("char[]", 1 << 16)
+        count = lib.jointspace_scara_pattern(self.machine.handle, poses, cross, gcode, len(gcode),
+                                             template, len(template))
+        if count < 0:
+            raise gcmd.error("jointspace: no pose of this arm fits a calibration cross (reach, limits)")
+        config_file = self.printer.get_start_args().get("config_file", "printer.cfg")
+        path = os.path.join(os.path.dirname(os.path.abspath(config_file)),
+                            "jointspace-scara-measurements.csv")
+        with open(path + ".tmp", "w") as f:
+            f.write(ffi.string(template).decode())
+        os.replace(path + ".tmp", path)
+        gcmd.respond_info(
+            "jointspace: printing %d crosses. Measure each cross centre on the bed (mm), fill in x_mm and y_mm "
+            "in %s, then run: jointspace calibrate scara -c printer.cfg --measurements %s" % (count, path, path))
+        self.printer.lookup_object("gcode").run_script_from_command(ffi.string(gcode).decode())
 
 
 def load_kinematics_polar(toolhead, config):

@@ -495,6 +495,10 @@ pub struct PatternOptions {
     pub extrusion_per_mm: f64,
     pub print_speed: f64,
     pub travel_speed: f64,
+    /// Motor angles `(a, b)` (rad) where `G28` leaves the arm, if known: the first travel then also turns the
+    /// joints instead of going straight.
+    #[serde(default)]
+    pub home_pose: Option<(f64, f64)>,
 }
 
 impl Default for PatternOptions {
@@ -505,6 +509,7 @@ impl Default for PatternOptions {
             extrusion_per_mm: 0.04,
             print_speed: 20.0,
             travel_speed: 100.0,
+            home_pose: None,
         }
     }
 }
@@ -546,6 +551,8 @@ pub fn calibration_pattern_gcode(
         CSV_HEADER.join(",")
     );
     let _ = writeln!(s, "G21\nG90\nM83\nG28\nG1 Z{} F600", num(o.layer_height));
+    // The pose before the first cross is G28's: when it is not known, the first travel goes straight.
+    let mut last = o.home_pose;
     for (i, &(a, b)) in poses.iter().enumerate() {
         let [x, y] = g.forward(a, b);
         let _ = writeln!(
@@ -557,12 +564,83 @@ pub fn calibration_pattern_gcode(
             num(x),
             num(y)
         );
+        for [vx, vy] in travel_via(g, last, (a, b)) {
+            let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(vx), num(vy));
+        }
         let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(x - h), num(y));
         let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(x + h), num(y));
         let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(x), num(y - h));
         let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(x), num(y + h));
+        last = Some((a, b));
     }
     let _ = writeln!(s, "G1 Z{} F600\nM84", num(o.layer_height + 5.0));
+    s
+}
+
+/// Via points of the travel between two poses, in joint space: the arm turns its motors linearly from one
+/// pose's angles to the other's (at most 5° per step), as a joint move would. Every point is a pose of the same
+/// elbow branch whose distance from the shoulder lies between the two poses' (it depends on q2 alone, which
+/// changes monotonically), so a travel never sweeps through the base or the unreachable centre, nor turns a
+/// joint through angles the grid of poses avoids.
+fn travel_via(g: &ScaraGeometry, from: Option<(f64, f64)>, to: (f64, f64)) -> Vec<[f64; 2]> {
+    let Some(from) = from else {
+        return Vec::new();
+    };
+    let (da, db) = (to.0 - from.0, to.1 - from.1);
+    let steps = (da.abs().max(db.abs()) / 5f64.to_radians()).ceil() as usize;
+    (1..steps)
+        .map(|i| {
+            let f = i as f64 / steps as f64;
+            g.forward(from.0 + da * f, from.1 + db * f)
+        })
+        .collect()
+}
+
+/// A calibration pattern for one machine: the poses, its G-code, and how well the poses determine the geometry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pattern {
+    /// Motor angles `(a, b)` (rad) of each cross centre.
+    pub poses: Vec<(f64, f64)>,
+    pub gcode: String,
+    pub condition_number: f64,
+}
+
+/// Chooses `count` well-conditioned poses (greedy D-optimal) among a grid of motor angles, keeping only those
+/// `admissible` accepts (motor angles, nominal cross centre: the caller knows the machine's reach and branch), and
+/// writes the pattern of crosses at them.
+pub fn pattern(
+    g: &ScaraGeometry,
+    count: usize,
+    admissible: &dyn Fn((f64, f64), [f64; 2]) -> bool,
+    options: &PatternOptions,
+) -> Pattern {
+    let span = (-150f64.to_radians(), 150f64.to_radians());
+    let candidates: Vec<(f64, f64)> = pose_grid(span, span, 25, 25)
+        .into_iter()
+        .filter(|&pose| admissible(pose, g.forward(pose.0, pose.1)))
+        .collect();
+    let mut poses = suggest_poses(g, &[], &candidates, count);
+    // One sweep of the shoulder: short joint-space travels.
+    poses.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+    Pattern {
+        gcode: calibration_pattern_gcode(g, &poses, options),
+        condition_number: analyse_poses(g, &poses).condition_number,
+        poses,
+    }
+}
+
+/// The measurements file to fill in: one row per pose with its motor angles, `x_mm` and `y_mm` left to the
+/// person measuring the printed crosses.
+pub fn measurement_template(poses: &[(f64, f64)]) -> String {
+    let mut s = String::from(
+        "# jointspace SCARA calibration: measure each printed cross's centre on the bed (mm, the printer's X/Y\n\
+         # frame) and fill in x_mm and y_mm; then run: jointspace calibrate scara --measurements THIS_FILE\n",
+    );
+    s += &CSV_HEADER.join(",");
+    s.push('\n');
+    for &(a, b) in poses {
+        let _ = writeln!(s, "{},{},,", num(a.to_degrees()), num(b.to_degrees()));
+    }
     s
 }
 

@@ -406,3 +406,41 @@ pub unsafe extern "C" fn jointspace_move_waypoints(
     }
     points.len() as c_int
 }
+
+/// A SCARA's calibration pattern: `count` crosses of `cross_size` mm at well-conditioned poses this machine
+/// reaches, as G-code (into `gcode`), and the measurements file to fill in (into `template`). Returns the number
+/// of crosses, −1 if the machine is not a SCARA or no pose fits, −2 if a buffer is too small.
+///
+/// # Safety
+/// `gcode` holds `gcode_len` bytes and `template` `template_len` bytes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_scara_pattern(
+    m: *const Machine,
+    count: c_int,
+    cross_size: f64,
+    gcode: *mut c_char,
+    gcode_len: usize,
+    template: *mut c_char,
+    template_len: usize,
+) -> c_int {
+    if !(cross_size > 0.0 && cross_size.is_finite()) {
+        return -1;
+    }
+    let options = calibrate::scara::PatternOptions {
+        cross_size,
+        ..Default::default()
+    };
+    let count = usize::try_from(count).unwrap_or(0);
+    let Some((pattern, csv)) = machine(m).and_then(|m| m.scara_pattern(count, &options)) else {
+        return -1;
+    };
+    if pattern.poses.is_empty() {
+        return -1;
+    }
+    if pattern.gcode.len() >= gcode_len || csv.len() >= template_len {
+        return -2;
+    }
+    write_message(&pattern.gcode, gcode, gcode_len);
+    write_message(&csv, template, template_len);
+    pattern.poses.len() as c_int
+}

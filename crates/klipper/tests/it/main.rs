@@ -5,6 +5,7 @@
 // The tests call the library's C interface as the hosts do.
 #![allow(unsafe_code)]
 
+mod calibration;
 mod engine;
 mod examples;
 mod homing;

@@ -1,0 +1,96 @@
+//! The SCARA calibration flow on the printer: `JOINTSPACE_SCARA_PATTERN` prints crosses and writes the measurements
+//! file; filled in with where an arm built differently from its config really puts each cross, `jointspace
+//! calibrate scara` recovers how it was built.
+
+use std::process::Command;
+
+use crate::engine::jointspace;
+use crate::hosts::{Hosts, KLIPPER, workspace_root, write};
+
+/// Where the arm as built (link 1 100.4 mm instead of 100, shoulder at (0.3, −0.2), ECR 3) puts the nozzle for
+/// motor angles in degrees (closed form, REFERENCE.md §2).
+fn as_built(a_deg: f64, b_deg: f64) -> (f64, f64) {
+    let (a, b) = (a_deg.to_radians(), b_deg.to_radians());
+    let (q1, q2) = (a, b - a / 3.0);
+    (
+        100.4 * q1.cos() + 100.0 * (q1 + q2).cos() + 0.3,
+        100.4 * q1.sin() + 100.0 * (q1 + q2).sin() - 0.2,
+    )
+}
+
+#[test]
+fn scara_pattern_on_the_printer_then_identification() {
+    let Some(hosts) = Hosts::get("scara_pattern_on_the_printer_then_identification") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = dir.path().join("printer.cfg");
+    std::fs::copy(workspace_root().join("klipper/examples/scara.cfg"), &config)
+        .expect("copy config");
+    let gcode = write(
+        dir.path(),
+        "pattern.gcode",
+        "M83\nG28\nJOINTSPACE_SCARA_PATTERN POSES=10\n",
+    );
+    let run = hosts.batch(KLIPPER, false, &config, &gcode, &dir.path().join("out"));
+    run.expect_success("JOINTSPACE_SCARA_PATTERN");
+    assert!(
+        run.log.contains("printing 10 crosses"),
+        "{}",
+        crate::hosts::tail(&run.log, 20)
+    );
+    let template = std::fs::read_to_string(dir.path().join("jointspace-scara-measurements.csv"))
+        .expect("the measurements file");
+    // Fill in the template as a person with a ruler would.
+    let mut filled = String::new();
+    let mut rows = 0;
+    for line in template.lines() {
+        let cells: Vec<&str> = line.split(',').collect();
+        match (
+            cells.first().and_then(|c| c.parse::<f64>().ok()),
+            cells.get(1).and_then(|c| c.parse::<f64>().ok()),
+        ) {
+            (Some(a), Some(b)) => {
+                let (x, y) = as_built(a, b);
+                filled += &format!("{a},{b},{x:.4},{y:.4}\n");
+                rows += 1;
+            }
+            _ => filled += &format!("{line}\n"),
+        }
+    }
+    assert_eq!(rows, 10, "{template}");
+    let measurements = write(dir.path(), "measured.csv", &filled);
+    let result = dir.path().join("scara.json");
+    let output = Command::new(jointspace())
+        .args(["calibrate", "scara", "-c"])
+        .arg(&config)
+        .arg("--measurements")
+        .arg(&measurements)
+        .arg("-o")
+        .arg(&result)
+        .output()
+        .expect("jointspace runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let json = std::fs::read_to_string(&result).expect("result");
+    let number = |key: &str| -> f64 {
+        let at = json
+            .find(&format!("\"{key}\""))
+            .unwrap_or_else(|| panic!("{key} in {json}"));
+        let rest = &json[at + key.len() + 3..];
+        let end = rest.find([',', '\n', '}']).expect("value end");
+        rest[..end].trim().parse().expect("a number")
+    };
+    for (key, truth) in [
+        ("link1_length", 100.4),
+        ("link2_length", 100.0),
+        ("offset_x", 0.3),
+        ("offset_y", -0.2),
+    ] {
+        let got = number(key);
+        assert!((got - truth).abs() < 0.01, "{key}: {got}, built {truth}");
+    }
+}

@@ -7,6 +7,7 @@ use std::path::Path;
 /// A buffered reader over a file or stdin, with a progress bar on stderr for large files
 /// (hidden automatically when stderr is not a terminal).
 pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, ProgressBar)> {
+    crate::output::register_input(path);
     if path == Path::new("-") {
         let bar = ProgressBar::hidden();
         let reader = Interruptible(std::io::stdin());

@@ -1,7 +1,6 @@
 //! `jointspace calibrate`: the polar bed's rotation centre from a Hall-sensor magnet scan (simulated or logged),
 //! and SCARA arm geometry from measured nozzle positions.
 
-use crate::output::write_atomically;
 use calibrate::scan::{CentreResult, ScanParams};
 use calibrate::scara::{self, Measurement, ScaraGeometry};
 use plot::{Figure, Layer, Rgb};
@@ -90,6 +89,7 @@ pub fn scan_params(args: &CentreArgs) -> ScanParams {
 fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     let params = scan_params(&args);
     let (result, truth) = if let Some(path) = &args.scan {
+        crate::output::register_input(path);
         let text = std::fs::read_to_string(path)
             .map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
         let slots = calibrate::scan::parse_detections(&text, &path.display().to_string())
@@ -102,12 +102,17 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     } else {
         return Err(miette::miette!("give --simulate or --scan FILE"));
     };
-    result
-        .write_json(&args.out)
-        .map_err(|e| miette::miette!("{e}"))?;
+    crate::output::write_output(&args.out, |w| {
+        serde_json::to_writer_pretty(&mut *w, &result)?;
+        Ok(w.write_all(b"\n")?)
+    })
+    .map_err(super::plain)?;
     crate::out!("{}", render_centre(&result, truth));
-    crate::outln!("  result written to {}", args.out.display());
+    if !crate::output::is_stdio(&args.out) {
+        crate::outln!("  result written to {}", args.out.display());
+    }
     if let Some(png) = &args.plot {
+        crate::output::refuse_input(png).map_err(super::plain)?;
         draw_magnet_map(&result, png)?;
         crate::outln!("  magnet map drawn in {}", png.display());
     }
@@ -217,6 +222,7 @@ pub fn draw_magnet_map(r: &CentreResult, png: &Path) -> miette::Result<()> {
 
 fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
     let start = start_geometry(args.config.as_deref())?;
+    crate::output::register_input(&args.measurements);
     let text = std::fs::read_to_string(&args.measurements)
         .map_err(|e| miette::miette!("cannot read {}: {e}", args.measurements.display()))?;
     let data: Vec<Measurement> =
@@ -273,7 +279,7 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         "elbow_coupling": g.elbow_coupling, "sigma": fit.sigma.to_vec(), "rms_mm": fit.rms,
         "condition_number": id.condition_number,
     });
-    write_atomically(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
+    crate::output::write_output(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
         .map_err(super::plain)?;
     crate::outln!("  result written to {}", args.out.display());
     Ok(ExitCode::SUCCESS)
@@ -297,7 +303,8 @@ fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
         .collect();
     let poses = scara::suggest_poses(&g, &[], &reachable, args.poses);
     let text = scara::calibration_pattern_gcode(&g, &poses, &scara::PatternOptions::default());
-    write_atomically(&args.out, |w| Ok(w.write_all(text.as_bytes())?)).map_err(super::plain)?;
+    crate::output::write_output(&args.out, |w| Ok(w.write_all(text.as_bytes())?))
+        .map_err(super::plain)?;
     let id = scara::analyse_poses(&g, &poses);
     crate::outln!(
         "{} crosses written to {} (condition number of the poses {:.1}); print it, measure each cross centre and \

@@ -32,6 +32,26 @@ pub enum Fixed {
     Rrf,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FirmwareArg {
+    /// Marlin: G90/G91 also switch E; M82/M83 switch E alone.
+    Marlin,
+    /// RepRapFirmware: G90/G91 switch X Y Z only.
+    Rrf,
+    /// Klipper: G91 makes E relative too; G90 gives E back its M82/M83 mode.
+    Klipper,
+}
+
+impl From<FirmwareArg> for convert::Firmware {
+    fn from(f: FirmwareArg) -> Self {
+        match f {
+            FirmwareArg::Marlin => convert::Firmware::Marlin,
+            FirmwareArg::Rrf => convert::Firmware::Rrf,
+            FirmwareArg::Klipper => convert::Firmware::Klipper,
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Printer configuration (Klipper's printer.cfg format).
@@ -39,7 +59,7 @@ pub struct Args {
     pub config: PathBuf,
     /// G-code file (`-` for standard input).
     pub file: PathBuf,
-    /// Output G-code file.
+    /// Output G-code file (`-` for standard output). It never replaces the input.
     #[arg(short = 'o', long = "out")]
     pub out: PathBuf,
     /// What the output's axes are.
@@ -70,18 +90,29 @@ pub struct Args {
     /// Absolute extrusion (`M82`) instead of relative.
     #[arg(long)]
     pub absolute_e: bool,
-    /// Replay the output through the forward kinematics and report the deviation, extrusion and time.
+    /// Re-read the written file as --firmware reads it (its mode lines included), replay it through the
+    /// forward kinematics and report the deviation, extrusion and time against the input.
     #[arg(long)]
     pub verify: bool,
+    /// The firmware that will run the output: how --verify reads its mode lines.
+    #[arg(long, value_enum, default_value = "marlin")]
+    pub firmware: FirmwareArg,
 }
 
 pub fn run(args: Args) -> miette::Result<ExitCode> {
-    let (machine, _) = super::run::load_machine(&args.config)?;
-    let options = options(&args)?;
+    let (machine, setup) = super::run::load_machine(&args.config)?;
+    let mut options = options(&args)?;
+    // The machine starts where homing leaves it; without a homing pose nothing unknown is guessed.
+    options.home = setup.home_position;
     let map = axis_map(&args, &machine.params)?;
+    if args.verify && (output::is_stdio(&args.out) || output::is_stdio(&args.file)) {
+        return Err(miette::miette!(
+            "--verify re-reads the input and the written file: it needs both as files, not `-`"
+        ));
+    }
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let mut stats = None;
-    output::write_atomically(&args.out, |out| {
+    output::write_output(&args.out, |out| {
         let mut converter = Converter::new(map.clone(), options.clone(), out)?;
         convert::convert_gcode(reader, &name, &mut converter)?;
         let (_, s) = converter.finish()?;
@@ -90,7 +121,7 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     })
     .map_err(|e| convert_error(&args, e))?;
     bar.finish_and_clear();
-    if let Some(s) = stats {
+    if let Some(s) = stats.filter(|_| !output::is_stdio(&args.out)) {
         crate::outln!(
             "{} → {}: {} moves as {} segments ({} centre turns, {} positioning moves)",
             name,
@@ -106,13 +137,51 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
             .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
         let commands = convert::read_commands(std::io::BufReader::new(input), &name)
             .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
-        let written = std::fs::read_to_string(&args.out)
+        let written = std::fs::File::open(&args.out)
             .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
-        let r = convert::verify(&map, &options, &commands, &written)
-            .map_err(|e| miette::miette!("{e}"))?;
-        crate::outln!("verification: {}", render_verify(&r));
+        let r = convert::verify(&map, &options, &commands, std::io::BufReader::new(written))
+            .map_err(|e| miette::miette!("{}: {e}", args.out.display()))?;
+        crate::outln!(
+            "verification ({} reading {}): {}",
+            options.firmware.name(),
+            args.out.display(),
+            render_verify(&r)
+        );
+        if let Some(problem) = verify_problem(&r, &options) {
+            eprintln!("{}: verification failed: {problem}", args.out.display());
+            return Ok(ExitCode::FAILURE);
+        }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// What makes a verification fail: the path off by more than the tolerance, segments on no input path, or
+/// extrusion different from the input's.
+pub fn verify_problem(r: &convert::VerifyReport, options: &ConvertOptions) -> Option<String> {
+    let tolerance = match options.segmentation {
+        Segmentation::Adaptive { tolerance } => Some(tolerance),
+        Segmentation::Fixed { .. } => None,
+    };
+    if let Some(t) = tolerance.filter(|&t| r.max_deviation > t * 1.01) {
+        return Some(format!(
+            "the path deviates by {:.4} mm, more than the tolerance {t} mm",
+            r.max_deviation
+        ));
+    }
+    if r.unmatched > 0 {
+        return Some(format!(
+            "{} written segments follow no input move",
+            r.unmatched
+        ));
+    }
+    let e_error = (r.extrusion_out - r.extrusion_in).abs() / r.extrusion_in.abs().max(1.0);
+    if e_error.is_nan() || e_error > 1e-6 {
+        return Some(format!(
+            "extrusion {:.5} mm differs from the input's {:.5} mm",
+            r.extrusion_out, r.extrusion_in
+        ));
+    }
+    None
 }
 
 /// The verification figures in one line.
@@ -168,6 +237,7 @@ fn options(args: &Args) -> miette::Result<ConvertOptions> {
         } else {
             Extrusion::Relative
         },
+        firmware: args.firmware.into(),
         ..ConvertOptions::default()
     };
     if let Some(letters) = &args.letters {
@@ -242,6 +312,7 @@ fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
         }));
     }
     if let Some(path) = &args.calibration {
+        crate::output::register_input(path);
         let result = calibrate::scan::CentreResult::read_json(path)
             .map_err(|e| miette::miette!("{}: {e}", path.display()))?;
         return Ok(Some(CentreCorrection {
@@ -260,7 +331,8 @@ fn convert_error(args: &Args, e: anyhow::Error) -> miette::Report {
         Ok(
             other @ (E::Unreachable { span, .. }
             | E::Unsupported { span, .. }
-            | E::NoConvergence { span, .. }),
+            | E::NoConvergence { span, .. }
+            | E::UnknownPosition { span, .. }),
         ) => {
             // The error's text starts with its own `line l:c:`; the diagnostic names file, line and column.
             let text = other.to_string();

@@ -3,6 +3,7 @@
 use crate::{diag, input};
 use motion::machine::{CheckReport, MachineSetup, Severity, check_gcode, plan_gcode};
 use serde::Serialize;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -49,6 +50,7 @@ pub struct CheckArgs {
 
 /// Load `printer.cfg` and build the machine, with diagnostics pointing into the file.
 pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, MachineSetup)> {
+    crate::output::register_input(path);
     let machine = config::MachineConfig::load(path)
         .map_err(|e| miette::Report::new(diag::config_error(&e)))?;
     for w in &machine.warnings {
@@ -230,16 +232,18 @@ pub fn execute(
         .collect();
     let step_dir = options.steps.as_deref();
     if let Some(dir) = step_dir {
+        crate::output::directory_output(dir).map_err(super::plain)?;
         std::fs::create_dir_all(dir)
             .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     }
     let mut sinks = Vec::with_capacity(motor_names.len());
     for name in &motor_names {
         let file = match step_dir {
-            Some(dir) => Some(
-                StepFileWriter::create(dir.join(format!("{name}.txt")))
-                    .map_err(|e| miette::miette!("{e}"))?,
-            ),
+            Some(dir) => {
+                let path = dir.join(format!("{name}.txt"));
+                crate::output::refuse_input(&path).map_err(super::plain)?;
+                Some(StepFileWriter::create(path).map_err(|e| miette::miette!("{e}"))?)
+            }
             None => None,
         };
         sinks.push(MotorSink {
@@ -386,34 +390,49 @@ pub fn render(r: &RunSummary) -> String {
     out
 }
 
-/// The moves CSV: written to a temporary file and renamed into place when complete.
-#[derive(Debug)]
+/// The moves CSV: written to a temporary file and renamed into place when complete (never over an input),
+/// or to standard output for `-`.
 struct CsvFile {
-    sink: motion::csv::CsvSink<std::io::BufWriter<tempfile::NamedTempFile>>,
-    path: PathBuf,
+    sink: motion::csv::CsvSink<std::io::BufWriter<Box<dyn std::io::Write + Send>>>,
+    /// The temporary file and where it goes; `None` for standard output.
+    temp: Option<(tempfile::NamedTempFile, PathBuf)>,
+}
+
+impl std::fmt::Debug for CsvFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CsvFile").finish_non_exhaustive()
+    }
 }
 
 impl CsvFile {
     fn create(path: &Path) -> miette::Result<Self> {
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let temp = tempfile::NamedTempFile::new_in(dir)
-            .map_err(|e| miette::miette!("cannot write {}: {e}", path.display()))?;
+        let fail =
+            |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
+        if crate::output::is_stdio(path) {
+            let out: Box<dyn std::io::Write + Send> = Box::new(std::io::stdout());
+            return Ok(CsvFile {
+                sink: motion::csv::CsvSink::new(std::io::BufWriter::new(out)),
+                temp: None,
+            });
+        }
+        let temp = crate::output::temp_file_for(path).map_err(super::plain)?;
+        let file = temp.reopen().map_err(|e| fail(&e))?;
+        let out: Box<dyn std::io::Write + Send> = Box::new(file);
         Ok(CsvFile {
-            sink: motion::csv::CsvSink::new(std::io::BufWriter::new(temp)),
-            path: path.to_path_buf(),
+            sink: motion::csv::CsvSink::new(std::io::BufWriter::new(out)),
+            temp: Some((temp, path.to_path_buf())),
         })
     }
 
     fn finish(self) -> miette::Result<()> {
-        let path = self.path;
-        let fail =
-            |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
+        let fail = |e: &dyn std::fmt::Display| miette::miette!("cannot write the moves: {e}");
         let writer = self.sink.finish().map_err(|e| fail(&e))?;
-        let temp = writer.into_inner().map_err(|e| fail(&e))?;
-        temp.persist(&path).map_err(|e| fail(&e))?;
+        let mut out = writer.into_inner().map_err(|e| fail(&e))?;
+        out.flush().map_err(|e| fail(&e))?;
+        if let Some((temp, path)) = self.temp {
+            temp.persist(&path)
+                .map_err(|e| miette::miette!("cannot write {}: {e}", path.display()))?;
+        }
         Ok(())
     }
 }

@@ -62,6 +62,7 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
         correction,
         after: after.as_ref().map(RunReport::new),
     };
+    crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
     sim::write_report(&args.out, &report, &before, after.as_ref()).map_err(|e| report_error(&e))?;
     let text = if args.json {
         let mut json = serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?;

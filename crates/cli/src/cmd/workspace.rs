@@ -48,6 +48,7 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     if !(args.cell > 0.05 && args.cell.is_finite()) {
         return Err(miette::miette!("--cell must be at least 0.05 mm"));
     }
+    crate::output::directory_output(&args.out).map_err(super::plain)?;
     let figures = map_and_draw(&machine.params, args.cell, &args.out, "workspace")?;
     if args.json {
         crate::outln!(

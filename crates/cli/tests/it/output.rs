@@ -34,3 +34,203 @@ fn closed_stdout_is_not_a_panic() {
         );
     }
 }
+
+/// A small print with the modes slicers mix: absolute E (`M82`), `G92 E0`, and end code in `G91`.
+const MIXED_MODES: &str = "G28\nM82\nG92 E0\nG1 Z0.3 F600\nG1 X20 Y0 F1800\nG1 X30 Y0 E0.5\nG1 X30 Y10 E0.6\n\
+G91\nG1 Z1 E-0.1\nG1 X-5 Y5\nG90\n";
+
+fn jointspace(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
+    Command::new(binary())
+        .current_dir(dir)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("run jointspace")
+}
+
+#[test]
+fn no_command_overwrites_its_input_under_any_name() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    std::fs::write(dir.join("in.gcode"), MIXED_MODES).expect("write input");
+    std::fs::hard_link(dir.join("in.gcode"), dir.join("link.gcode")).expect("hard link");
+    std::fs::create_dir(dir.join("sub")).expect("mkdir");
+    let config = dir.join("printer.cfg");
+    std::fs::copy(example_machine("polar"), &config).expect("copy config");
+    let config_text = std::fs::read(&config).expect("read config");
+    let cfg = config.to_str().expect("utf-8 path");
+    for (args, victim) in [
+        (
+            vec!["convert", "-c", cfg, "in.gcode", "-o", "in.gcode"],
+            "in.gcode",
+        ),
+        (
+            vec!["convert", "-c", cfg, "in.gcode", "-o", "link.gcode"],
+            "in.gcode",
+        ),
+        (
+            vec!["convert", "-c", cfg, "in.gcode", "-o", "sub/../in.gcode"],
+            "in.gcode",
+        ),
+        (
+            vec!["convert", "-c", cfg, "in.gcode", "-o", "printer.cfg"],
+            "printer.cfg",
+        ),
+        (
+            vec!["run", "-c", cfg, "in.gcode", "--moves", "in.gcode"],
+            "in.gcode",
+        ),
+        (
+            vec!["run", "-c", cfg, "in.gcode", "--moves", "link.gcode"],
+            "in.gcode",
+        ),
+    ] {
+        let output = jointspace(dir, &args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains("refusing to write"), "{args:?}: {stderr}");
+        assert_eq!(
+            std::fs::read(dir.join("in.gcode")).expect("input still there"),
+            MIXED_MODES.as_bytes(),
+            "{args:?} changed {victim}"
+        );
+        assert_eq!(std::fs::read(&config).expect("config"), config_text);
+    }
+    // Standard input that is the output file, too.
+    let output = Command::new(binary())
+        .current_dir(dir)
+        .args(["convert", "-c", cfg, "-", "-o", "in.gcode"])
+        .stdin(std::fs::File::open(dir.join("in.gcode")).expect("open"))
+        .output()
+        .expect("run jointspace");
+    assert!(!output.status.success());
+    assert_eq!(
+        std::fs::read(dir.join("in.gcode")).expect("input"),
+        MIXED_MODES.as_bytes()
+    );
+    // A different file is fine.
+    let output = jointspace(dir, &["convert", "-c", cfg, "in.gcode", "-o", "out.gcode"]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+#[test]
+fn dash_writes_standard_output_not_a_file_named_dash() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    std::fs::write(dir.join("in.gcode"), MIXED_MODES).expect("write input");
+    let cfg = example_machine("polar");
+    let cfg = cfg.to_str().expect("utf-8 path");
+    let output = jointspace(dir, &["convert", "-c", cfg, "in.gcode", "-o", "-"]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.starts_with("; converted by jointspace\nG90\nM83\n"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("G1 "), "{stdout}");
+    let output = jointspace(dir, &["run", "-c", cfg, "in.gcode", "--moves", "-"]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(String::from_utf8_lossy(&output.stdout).starts_with("trapq,print_time,"));
+    assert!(!dir.join("-").exists(), "a file named `-` was written");
+}
+
+#[cfg(unix)]
+#[test]
+fn output_files_get_the_permissions_of_any_new_file() {
+    use std::os::unix::fs::PermissionsExt;
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    std::fs::write(dir.join("in.gcode"), MIXED_MODES).expect("write input");
+    let cfg = example_machine("polar");
+    let script = format!(
+        "umask 022 && exec '{}' convert -c '{}' in.gcode -o out.gcode && exec true",
+        binary(),
+        cfg.display()
+    );
+    let status = Command::new("sh")
+        .current_dir(dir)
+        .args(["-c", &script])
+        .status()
+        .expect("run sh");
+    assert!(status.success());
+    let script = format!(
+        "umask 022 && exec '{}' run -c '{}' in.gcode --moves moves.csv --steps steps",
+        binary(),
+        cfg.display()
+    );
+    assert!(
+        Command::new("sh")
+            .current_dir(dir)
+            .args(["-c", &script])
+            .status()
+            .expect("sh")
+            .success()
+    );
+    for file in ["out.gcode", "moves.csv", "steps/stepper_bed.txt"] {
+        let mode = std::fs::metadata(dir.join(file))
+            .expect("written")
+            .permissions()
+            .mode();
+        assert_eq!(mode & 0o777, 0o644, "{file}: mode {:o}", mode & 0o777);
+    }
+}
+
+#[test]
+fn convert_verify_reads_the_written_file_as_each_firmware_does() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    std::fs::write(dir.join("in.gcode"), MIXED_MODES).expect("write input");
+    let cfg = example_machine("polar");
+    let cfg = cfg.to_str().expect("utf-8 path");
+    for firmware in ["marlin", "rrf", "klipper"] {
+        for absolute in [false, true] {
+            let mut args = vec![
+                "convert",
+                "-c",
+                cfg,
+                "in.gcode",
+                "-o",
+                "out.gcode",
+                "--verify",
+            ];
+            args.extend(["--firmware", firmware]);
+            if absolute {
+                args.push("--absolute-e");
+            }
+            let output = jointspace(dir, &args);
+            let stdout = String::from_utf8_lossy(&output.stdout);
+            assert!(
+                output.status.success(),
+                "{args:?}: {stdout}{}",
+                String::from_utf8_lossy(&output.stderr)
+            );
+            let line = stdout
+                .lines()
+                .find(|l| l.starts_with("verification"))
+                .expect("report");
+            assert!(line.contains("reading out.gcode"), "{line}");
+            // 0.5 + 0.1 − 0.1 mm of filament, read back the same.
+            assert!(line.contains("filament 0.50000 → 0.50000 mm"), "{line}");
+            // Homed first: Z starts at the config's 0.5, never an invented 0.
+            let written = std::fs::read_to_string(dir.join("out.gcode")).expect("output");
+            assert!(
+                !written
+                    .lines()
+                    .any(|l| l.contains(" Z0 ") || l.ends_with(" Z0")),
+                "{written}"
+            );
+        }
+    }
+}

@@ -14,7 +14,7 @@ use crate::machines;
 fn radians() -> ConvertOptions {
     ConvertOptions {
         angle_unit: AngleUnit::Radians,
-        ..ConvertOptions::default()
+        ..crate::common::homed()
     }
 }
 
@@ -90,7 +90,7 @@ fn a_bed_with_a_one_millimetre_offset_is_corrected_and_verified() {
     let options = ConvertOptions {
         scale_xy,
         translate,
-        ..ConvertOptions::default()
+        ..crate::common::homed()
     };
     let correction = CentreCorrection {
         arm_zero_offset: 1.0,
@@ -109,7 +109,7 @@ fn a_bed_with_a_one_millimetre_offset_is_corrected_and_verified() {
 
     // The uncorrected conversion, run on the real machine, misses by about the offset.
     let (plain, _) = convert_text(&ideal, &options, &text).expect("converts");
-    let uncorrected = verify(&real, &options, &commands, &plain).expect("readable");
+    let uncorrected = verify(&real, &options, &commands, plain.as_bytes()).expect("readable");
     assert!(uncorrected.max_deviation > 0.9, "{uncorrected:?}");
 
     // Cartesian output for a firmware with the ideal model: the real nozzle lands on the path.

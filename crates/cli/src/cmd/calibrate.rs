@@ -23,8 +23,18 @@ pub struct CentreArgs {
     #[arg(long, conflicts_with = "scan")]
     pub simulate: bool,
     /// Magnet detections logged by a real machine: CSV `magnet,side,arm_mm,bed_deg` (side `near` or `far`).
+    /// `bed_deg` is the bed motor's reading in the machine's sign, the one Klipper's polar kinematics and
+    /// `jointspace convert` use: an ideal machine has bed point (r·cos θ, r·sin θ) under the nozzle (the bed
+    /// itself has turned by −θ). A log of the physical rotation must be negated first.
     #[arg(long, value_name = "CSV")]
     pub scan: Option<PathBuf>,
+    /// Also write the detections as such a CSV (its header comment states the sign); `-` for standard output.
+    #[arg(long, value_name = "CSV")]
+    pub save_scan: Option<PathBuf>,
+    /// How well the sensor's axis is known to sit on the nozzle (mm, 1σ): a sensor beside the nozzle or
+    /// tilted shifts dx and dy by that much and no scan can see it; it is added to the reported uncertainty.
+    #[arg(long, default_value_t = 0.05, value_name = "MM")]
+    pub sensor_alignment: f64,
     /// Magnets on the bed rim (simulation).
     #[arg(long, default_value_t = 16)]
     pub magnets: usize,
@@ -82,6 +92,7 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
 pub fn scan_params(args: &CentreArgs) -> ScanParams {
     ScanParams {
         magnet_count: args.magnets,
+        sensor_alignment: args.sensor_alignment,
         ..ScanParams::default()
     }
 }
@@ -102,6 +113,11 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     } else {
         return Err(miette::miette!("give --simulate or --scan FILE"));
     };
+    if let Some(path) = &args.save_scan {
+        let text = calibrate::scan::write_detections(&result);
+        crate::output::write_output(path, |w| Ok(w.write_all(text.as_bytes())?))
+            .map_err(super::plain)?;
+    }
     crate::output::write_output(&args.out, |w| {
         serde_json::to_writer_pretty(&mut *w, &result)?;
         Ok(w.write_all(b"\n")?)
@@ -160,6 +176,14 @@ pub fn render_centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
         "  {} of {} magnets seen, {} pairs used; scan takes {:.0} s on the machine ({} sensor readings)\n",
         r.detected, r.magnet_count, r.pairs_used, r.scan_time, r.sensor_reads
     );
+    out += &format!(
+        "  uncertainty: scan ±{:.4} / ±{:.4} mm, sensor alignment to the nozzle ±{:.4} mm (not observable by \
+         a scan; --sensor-alignment)\n",
+        r.sigma_scan[0], r.sigma_scan[1], r.sensor_alignment
+    );
+    for flag in &r.flags {
+        out += &format!("  warning: {flag}\n");
+    }
     if let Some([dx, dy]) = truth {
         let error = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
         out += &format!(

@@ -161,6 +161,8 @@ fn demo_calibration(out: &Path) -> miette::Result<String> {
     let args = calibrate::CentreArgs {
         simulate: true,
         scan: None,
+        save_scan: None,
+        sensor_alignment: 0.05,
         magnets: 16,
         offset: Some("0.8,-0.45".into()),
         noise: 0.15,

@@ -4,6 +4,7 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The files this run reads (identified by device and inode, not by name), which no output may replace.
 static INPUTS: Mutex<Vec<(FileId, PathBuf)>> = Mutex::new(Vec::new());
@@ -135,17 +136,24 @@ pub fn temp_file_for(path: &Path) -> anyhow::Result<tempfile::NamedTempFile> {
         .map_err(|e| anyhow::anyhow!("cannot create a temporary file in {}: {e}", dir.display()))
 }
 
-/// Print to standard output. When the reader has gone (`jointspace … | head`), stop quietly instead of
-/// panicking as `print!` would.
+/// Standard output's reader has gone (`jointspace … | head`).
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Print to standard output. When the reader has gone (`jointspace … | head`), the rest is dropped quietly
+/// (not a panic, as `print!` would) and the command runs on to its own exit status, so one that found
+/// errors still exits non-zero.
 pub fn stdout(text: &str) {
     use std::io::ErrorKind;
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
     let mut out = std::io::stdout().lock();
     if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
-        if e.kind() == ErrorKind::BrokenPipe {
-            std::process::exit(0);
+        STDOUT_CLOSED.store(true, Ordering::Relaxed);
+        if e.kind() != ErrorKind::BrokenPipe {
+            eprintln!("cannot write to standard output: {e}");
+            std::process::exit(1);
         }
-        eprintln!("cannot write to standard output: {e}");
-        std::process::exit(1);
     }
 }
 

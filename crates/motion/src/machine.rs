@@ -227,7 +227,9 @@ impl CheckReport {
 }
 
 /// Plan a stream without generating steps and collect every problem instead of stopping at the first:
-/// syntax errors, unreachable segments (skipped, the machine stays put), commands the planner refused,
+/// syntax errors, unreachable segments, commands the planner refused (after each refusal the check goes on
+/// from the refused move's target when the machine can be there, else from where it is, with the target's E:
+/// [`Planner::resync_after_refusal`]),
 /// ignored commands, and moves that a machine limit slows below a quarter of their requested speed.
 /// At most `max_problems` are kept (all are counted in the error total).
 pub fn check_gcode(
@@ -269,7 +271,8 @@ pub fn check_gcode(
                         message: e.kind.to_string(),
                         line_text: None,
                     });
-                    let position = planner.toolhead().position();
+                    // Go on from where the file meant to be, so no follow-on errors are invented.
+                    let position = planner.resync_after_refusal(&command);
                     commands.interpreter_mut().set_position(position);
                 }
             },

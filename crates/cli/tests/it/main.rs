@@ -2,6 +2,7 @@
 //! time, determinism, interruption) and fuzz regressions. Every test runs the built binary as a user would.
 
 mod catalogue;
+mod check;
 mod common;
 mod determinism;
 mod fuzz_regressions;

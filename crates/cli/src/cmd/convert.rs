@@ -72,9 +72,17 @@ pub struct Args {
     /// Segment like a firmware does instead (for comparison).
     #[arg(long, value_enum)]
     pub fixed: Option<Fixed>,
-    /// Polar centre correction `dx,dy` (mm): the arm's zero along the arm and the arm's sideways offset.
+    /// Polar centre correction of the arm (mm): its zero lies `dx` along the arm from the bed's rotation axis,
+    /// and its line passes `dy` beside the axis (`arm_zero_offset`, `arm_lateral_offset`). The part stays
+    /// where the slicer put it relative to the axis; the motors are computed for the offset arm.
     #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
     pub centre_offset: Option<String>,
+    /// The centring thesis' correction (mm): the part is shifted, every point `p` written as the polar
+    /// coordinates of `p − (dx, dy)`. It corrects a bed whose origin (what the slicer's coordinates refer to)
+    /// lies at `(dx, dy)` from the rotation axis in the bed's frame; the arm is taken as ideal. A different
+    /// model from --centre-offset: the two agree only for d = (0, 0).
+    #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+    pub centre_shift: Option<String>,
     /// Take the centre correction from a `jointspace calibrate centre` result file.
     #[arg(long, value_name = "FILE", conflicts_with = "centre_offset")]
     pub calibration: Option<PathBuf>,
@@ -240,6 +248,10 @@ fn options(args: &Args) -> miette::Result<ConvertOptions> {
         firmware: args.firmware.into(),
         ..ConvertOptions::default()
     };
+    if let Some(text) = &args.centre_shift {
+        let [dx, dy] = pair_of_numbers("--centre-shift", text)?;
+        options.translate = [-dx, -dy];
+    }
     if let Some(letters) = &args.letters {
         let chars: Vec<char> = letters.chars().collect();
         match chars[..] {
@@ -293,22 +305,28 @@ fn axis_map(args: &Args, params: &MachineParams) -> miette::Result<AxisMap> {
     }
 }
 
+/// `dx,dy`: two finite numbers (mm).
+fn pair_of_numbers(flag: &str, text: &str) -> miette::Result<[f64; 2]> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let numbers: Vec<f64> = parts
+        .iter()
+        .filter_map(|p| p.parse::<f64>().ok())
+        .filter(|v| v.is_finite())
+        .collect();
+    match numbers[..] {
+        [dx, dy] if parts.len() == 2 => Ok([dx, dy]),
+        _ => Err(miette::miette!(
+            "{flag} takes two numbers `dx,dy` in mm, got `{text}`"
+        )),
+    }
+}
+
 fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
     if let Some(text) = &args.centre_offset {
-        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-        let numbers: Vec<f64> = parts
-            .iter()
-            .filter_map(|p| p.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .collect();
-        if parts.len() != 2 || numbers.len() != 2 {
-            return Err(miette::miette!(
-                "--centre-offset takes two numbers `dx,dy` in mm, got `{text}`"
-            ));
-        }
+        let [dx, dy] = pair_of_numbers("--centre-offset", text)?;
         return Ok(Some(CentreCorrection {
-            arm_zero_offset: numbers[0],
-            arm_lateral_offset: numbers[1],
+            arm_zero_offset: dx,
+            arm_lateral_offset: dy,
         }));
     }
     if let Some(path) = &args.calibration {

@@ -234,3 +234,63 @@ fn convert_verify_reads_the_written_file_as_each_firmware_does() {
         }
     }
 }
+
+#[test]
+fn convert_centre_shift_reproduces_the_thesis_example() {
+    // R_old 5 at φ π/4 with the centre displaced by d = (2, 1) → R 2.97, φ 1.03 rad (exactly 2.9643, 1.0263).
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    let p = 5.0 * std::f64::consts::FRAC_PI_4.cos();
+    std::fs::write(
+        dir.join("in.gcode"),
+        format!("G28\nG0 X{p:.9} Y{p:.9} Z1\n"),
+    )
+    .expect("input");
+    let cfg = example_machine("polar");
+    let cfg = cfg.to_str().expect("utf-8 path");
+    let args = [
+        "convert",
+        "-c",
+        cfg,
+        "in.gcode",
+        "-o",
+        "out.gcode",
+        "--radians",
+        "--centre-shift",
+        "2,1",
+    ];
+    let output = jointspace(dir, &args);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let written = std::fs::read_to_string(dir.join("out.gcode")).expect("output");
+    let line = written
+        .lines()
+        .find(|l| l.starts_with("G0 X"))
+        .expect("positioning move");
+    let value = |letter: char| -> f64 {
+        line.split_whitespace()
+            .find_map(|w| w.strip_prefix(letter))
+            .and_then(|v| v.parse().ok())
+            .expect("word")
+    };
+    assert!((value('X') - 2.964).abs() < 1e-3, "{line}");
+    assert!((value('Y') - 1.0263).abs() < 1e-3, "{line}");
+    // The arm-offset model gives another radius for the same numbers.
+    let args = [
+        "convert",
+        "-c",
+        cfg,
+        "in.gcode",
+        "-o",
+        "arm.gcode",
+        "--radians",
+        "--centre-offset",
+        "2,1",
+    ];
+    assert!(jointspace(dir, &args).status.success());
+    let written = std::fs::read_to_string(dir.join("arm.gcode")).expect("output");
+    assert!(written.contains("G0 X2.899"), "{written}");
+}

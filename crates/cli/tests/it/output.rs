@@ -294,3 +294,37 @@ fn convert_centre_shift_reproduces_the_thesis_example() {
     let written = std::fs::read_to_string(dir.join("arm.gcode")).expect("output");
     assert!(written.contains("G0 X2.899"), "{written}");
 }
+
+#[test]
+fn a_machine_that_reaches_nothing_is_an_error_not_an_empty_map() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    let text = std::fs::read_to_string(example_machine("scara")).expect("config");
+    // The base protection covers more than the arms reach (100 + 100 mm).
+    let text = text.replace("base_protection_radius: 60", "base_protection_radius: 250");
+    std::fs::write(dir.join("printer.cfg"), text).expect("write config");
+    let output = jointspace(dir, &["workspace", "-c", "printer.cfg", "-o", "maps"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("reaches no point of the bed"), "{stderr}");
+    assert!(
+        !dir.join("maps").exists(),
+        "pictures of nothing were written"
+    );
+    // The example machine itself maps fine.
+    let cfg = example_machine("scara");
+    let output = jointspace(
+        dir,
+        &[
+            "workspace",
+            "-c",
+            cfg.to_str().expect("utf-8"),
+            "-o",
+            "maps",
+            "--json",
+        ],
+    );
+    assert!(output.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
+    assert!(json["reachable_area_mm2"].as_f64().expect("area") > 10_000.0);
+}

@@ -75,3 +75,31 @@ impl<R: Read> Read for Interruptible<R> {
         self.0.read(buf)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn delayed(started: Instant) -> DelayedBar<&'static [u8]> {
+        DelayedBar {
+            inner: b"G1 X1\n",
+            bar: ProgressBar::hidden(),
+            started,
+            shown: false,
+        }
+    }
+
+    #[test]
+    fn the_bar_appears_after_a_second_of_reading_whatever_the_size() {
+        let mut buf = [0u8; 4];
+        let mut quick = delayed(Instant::now());
+        assert_eq!(quick.read(&mut buf).expect("read"), 4);
+        assert!(!quick.shown, "a short run shows no bar");
+        let Some(long_ago) = Instant::now().checked_sub(PROGRESS_DELAY * 2) else {
+            return;
+        };
+        let mut slow = delayed(long_ago);
+        assert_eq!(slow.read(&mut buf).expect("read"), 4);
+        assert!(slow.shown, "a long run of a 6-byte input shows its bar");
+    }
+}

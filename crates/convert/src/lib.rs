@@ -56,12 +56,14 @@ pub use verify::{SegmentDeviation, VerifyError, VerifyReport, verify, verify_seg
 
 use gcode::{Command, Commands, GcodeError, Interpreter, Reader, Spanned};
 
-/// Converts the G-code text `input` (named `source` in errors) line by line into `converter`.
+/// Converts the G-code text `input` (named `source` in errors) line by line into `converter`; returns the
+/// reader's warnings (ignored parameters, lossy comments…), at most [`gcode::Warnings::MAX_KEPT`], and their
+/// total.
 pub fn convert_gcode<R: BufRead, W: Write>(
     input: R,
     source: &str,
     converter: &mut Converter<W>,
-) -> Result<(), ConvertError> {
+) -> Result<(Vec<gcode::Warning>, u64), ConvertError> {
     let mut reader = Reader::new(input, source);
     let source: Arc<str> = Arc::clone(reader.source());
     let home = converter.options().home;
@@ -98,7 +100,11 @@ pub fn convert_gcode<R: BufRead, W: Write>(
     }
     // `finish` only releases slicer metadata, which writes nothing.
     interpreter.finish();
-    Ok(())
+    let total = reader.warnings().total() + interpreter.warnings().total();
+    let mut warnings = reader.warnings_mut().take();
+    warnings.extend(interpreter.take_warnings());
+    warnings.sort_by_key(|w| (w.span.line, w.span.column));
+    Ok((warnings, total))
 }
 
 /// All commands of a G-code text, for [`verify`].

@@ -282,7 +282,7 @@ pub fn check_gcode(
         push(Problem {
             span: w.span,
             severity: Severity::Warning,
-            message: w.to_string(),
+            message: w.message.clone(),
             line_text: None,
         });
     }

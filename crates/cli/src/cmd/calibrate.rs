@@ -4,6 +4,7 @@
 use calibrate::scan::{CentreResult, ScanParams};
 use calibrate::scara::{self, Measurement, ScaraGeometry};
 use plot::{Figure, Layer, Rgb};
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -52,6 +53,9 @@ pub struct CentreArgs {
     /// Picture of the magnet map with the fitted ring and residuals (PNG; an SVG is written beside it).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    /// Print the result as JSON (what the result file holds) instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -65,6 +69,9 @@ pub struct ScaraArgs {
     /// Result file (JSON).
     #[arg(short = 'o', long = "out", default_value = "scara.json")]
     pub out: PathBuf,
+    /// Print the result as JSON (what the result file holds) instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -123,14 +130,23 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
         Ok(w.write_all(b"\n")?)
     })
     .map_err(super::plain)?;
-    crate::out!("{}", render_centre(&result, truth));
-    if !crate::output::is_stdio(&args.out) {
-        crate::outln!("  result written to {}", args.out.display());
+    if args.json {
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&result).map_err(|e| miette::miette!("{e}"))?
+        );
+    } else {
+        crate::out!("{}", render_centre(&result, truth));
+        if !crate::output::is_stdio(&args.out) {
+            crate::outln!("  result written to {}", args.out.display());
+        }
     }
     if let Some(png) = &args.plot {
         crate::output::refuse_input(png).map_err(super::plain)?;
         draw_magnet_map(&result, png)?;
-        crate::outln!("  magnet map drawn in {}", png.display());
+        if !args.json {
+            crate::outln!("  magnet map drawn in {}", png.display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -254,7 +270,9 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
             .map_err(|e| miette::miette!("{e}"))?;
     let fit = scara::identify(&data, &start).map_err(|e| miette::miette!("{e}"))?;
     let g = &fit.geometry;
-    crate::outln!(
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
         "identified from {} measurements (residual RMS {:.4} mm):",
         data.len(),
         fit.rms
@@ -278,14 +296,16 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         fit.sigma[6],
     ];
     for ((name, v), s) in scara::PARAM_NAMES.iter().zip(values).zip(sigmas) {
-        crate::outln!("  {name:<16} {v:>12.5} ± {s:.5}");
+        let _ = writeln!(text, "  {name:<16} {v:>12.5} ± {s:.5}");
     }
-    crate::outln!(
+    let _ = writeln!(
+        text,
         "  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)",
         1.0 / g.elbow_coupling
     );
     let id = &fit.identifiability;
-    crate::outln!(
+    let _ = writeln!(
+        text,
         "  condition number of the poses: {:.1}",
         id.condition_number
     );
@@ -294,7 +314,11 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
             .iter()
             .map(|(n, w)| format!("{w:+.2}·{n}"))
             .collect();
-        crate::outln!("  not identifiable from these poses: {}", terms.join(" "));
+        let _ = writeln!(
+            text,
+            "  not identifiable from these poses: {}",
+            terms.join(" ")
+        );
     }
     let json = serde_json::json!({
         "link1_length": g.link1_length, "link2_length": g.link2_length,
@@ -305,7 +329,17 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
     });
     crate::output::write_output(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
         .map_err(super::plain)?;
-    crate::outln!("  result written to {}", args.out.display());
+    if args.json {
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&json).unwrap_or_default()
+        );
+    } else {
+        if !crate::output::is_stdio(&args.out) {
+            let _ = writeln!(text, "  result written to {}", args.out.display());
+        }
+        crate::out!("{text}");
+    }
     Ok(ExitCode::SUCCESS)
 }
 

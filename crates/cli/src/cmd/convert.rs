@@ -105,9 +105,39 @@ pub struct Args {
     /// The firmware that will run the output: how --verify reads its mode lines.
     #[arg(long, value_enum, default_value = "marlin")]
     pub firmware: FirmwareArg,
+    /// Print the counts (and the verification) as JSON; a failure as `{"error": …}`.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<ExitCode> {
+    let json = args.json;
+    let file = args.file.display().to_string();
+    let result = convert_file(args);
+    if json && let Err(e) = &result {
+        super::print_json_error(&file, e.place, &e.message);
+    }
+    result.map_err(|e| e.report)
+}
+
+/// A failure of `convert`: the diagnostic, and for `--json` its place and message.
+struct Failure {
+    report: miette::Report,
+    place: Option<(u64, u32)>,
+    message: String,
+}
+
+impl From<miette::Report> for Failure {
+    fn from(report: miette::Report) -> Self {
+        Failure {
+            message: report.to_string(),
+            place: None,
+            report,
+        }
+    }
+}
+
+fn convert_file(args: Args) -> Result<ExitCode, Failure> {
     let (machine, setup) = super::run::load_machine(&args.config)?;
     let mut options = options(&args)?;
     // The machine starts where homing leaves it; without a homing pose nothing unknown is guessed.
@@ -116,19 +146,98 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     if args.verify && (output::is_stdio(&args.out) || output::is_stdio(&args.file)) {
         return Err(miette::miette!(
             "--verify re-reads the input and the written file: it needs both as files, not `-`"
-        ));
+        )
+        .into());
     }
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let mut stats = None;
+    let mut warnings = (Vec::new(), 0);
     output::write_output(&args.out, |out| {
         let mut converter = Converter::new(map.clone(), options.clone(), out)?;
-        convert::convert_gcode(reader, &name, &mut converter)?;
+        warnings = convert::convert_gcode(reader, &name, &mut converter)?;
         let (_, s) = converter.finish()?;
         stats = Some(s);
         Ok(())
     })
     .map_err(|e| convert_error(&args, e))?;
     bar.finish_and_clear();
+    for w in warnings.0.iter().take(20) {
+        eprintln!(
+            "{name}:{}:{}: warning: {}",
+            w.span.line, w.span.column, w.message
+        );
+    }
+    if warnings.1 > 20 {
+        eprintln!("{name}: … and {} more warnings", warnings.1 - 20);
+    }
+    let mut verification = None;
+    if args.verify {
+        let input = std::fs::File::open(&args.file)
+            .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
+        let commands = convert::read_commands(std::io::BufReader::new(input), &name)
+            .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
+        let written = std::fs::File::open(&args.out)
+            .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
+        let r = convert::verify(&map, &options, &commands, std::io::BufReader::new(written))
+            .map_err(|e| miette::miette!("{}: {e}", args.out.display()))?;
+        verification = Some(r);
+    }
+    let problem = verification
+        .as_ref()
+        .and_then(|r| verify_problem(r, &options));
+    if args.json {
+        let s = stats.unwrap_or_default();
+        let value = serde_json::json!({
+            "input": name,
+            "output": args.out.display().to_string(),
+            "moves": s.moves,
+            "segments": s.segments,
+            "centre_turns": s.flips,
+            "positioning_moves": s.positioning_moves,
+            "warnings": warnings.1,
+            "firmware": options.firmware.name(),
+            "verification": verification.as_ref().map(verify_json),
+            "verification_failure": problem,
+        });
+        if !output::is_stdio(&args.out) {
+            crate::outln!(
+                "{}",
+                serde_json::to_string_pretty(&value).unwrap_or_default()
+            );
+        }
+    } else {
+        print_text(&args, &name, stats, verification.as_ref(), &options);
+    }
+    if let Some(problem) = problem {
+        eprintln!("{}: verification failed: {problem}", args.out.display());
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The verification figures as JSON.
+fn verify_json(r: &convert::VerifyReport) -> serde_json::Value {
+    serde_json::json!({
+        "max_deviation_mm": r.max_deviation,
+        "worst_point": r.worst_point,
+        "rms_deviation_mm": r.rms_deviation,
+        "segments": r.segments,
+        "unmatched_segments": r.unmatched,
+        "filament_in_mm": r.extrusion_in,
+        "filament_out_mm": r.extrusion_out,
+        "time_in_s": r.time_in,
+        "time_out_s": r.time_out,
+        "centre_turn_time_s": r.flip_time,
+    })
+}
+
+fn print_text(
+    args: &Args,
+    name: &str,
+    stats: Option<convert::ConvertStats>,
+    verification: Option<&convert::VerifyReport>,
+    options: &ConvertOptions,
+) {
     if let Some(s) = stats.filter(|_| !output::is_stdio(&args.out)) {
         crate::outln!(
             "{} → {}: {} moves as {} segments ({} centre turns, {} positioning moves)",
@@ -140,27 +249,14 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
             s.positioning_moves
         );
     }
-    if args.verify {
-        let input = std::fs::File::open(&args.file)
-            .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
-        let commands = convert::read_commands(std::io::BufReader::new(input), &name)
-            .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
-        let written = std::fs::File::open(&args.out)
-            .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
-        let r = convert::verify(&map, &options, &commands, std::io::BufReader::new(written))
-            .map_err(|e| miette::miette!("{}: {e}", args.out.display()))?;
+    if let Some(r) = verification {
         crate::outln!(
             "verification ({} reading {}): {}",
             options.firmware.name(),
             args.out.display(),
-            render_verify(&r)
+            render_verify(r)
         );
-        if let Some(problem) = verify_problem(&r, &options) {
-            eprintln!("{}: verification failed: {problem}", args.out.display());
-            return Ok(ExitCode::FAILURE);
-        }
     }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// What makes a verification fail: the path off by more than the tolerance, segments on no input path, or
@@ -342,7 +438,32 @@ fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
 }
 
 /// A conversion error: on a G-code line when it has one.
-fn convert_error(args: &Args, e: anyhow::Error) -> miette::Report {
+fn convert_error(args: &Args, e: anyhow::Error) -> Failure {
+    use convert::ConvertError as E;
+    let (place, message) = match e.downcast_ref::<E>() {
+        Some(E::Gcode(g)) => (Some((g.span.line, g.span.column)), g.kind.to_string()),
+        Some(
+            other @ (E::Unreachable { span, .. }
+            | E::Unsupported { span, .. }
+            | E::NoConvergence { span, .. }
+            | E::UnknownPosition { span, .. }),
+        ) => {
+            let text = other.to_string();
+            let message = text
+                .split_once(": ")
+                .map_or(text.as_str(), |(_, rest)| rest);
+            (Some((span.line, span.column)), message.to_string())
+        }
+        _ => (None, format!("{e:#}")),
+    };
+    Failure {
+        report: convert_report(args, e),
+        place,
+        message,
+    }
+}
+
+fn convert_report(args: &Args, e: anyhow::Error) -> miette::Report {
     use convert::ConvertError as E;
     match e.downcast::<E>() {
         Ok(E::Gcode(e)) => miette::Report::new(diag::gcode_error(&e)),

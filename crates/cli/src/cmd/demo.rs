@@ -169,6 +169,7 @@ fn demo_calibration(out: &Path) -> miette::Result<String> {
         seed: 7,
         out: out.join("calibration/centre.json"),
         plot: Some(out.join("calibration/magnet-map.png")),
+        json: false,
     };
     std::fs::create_dir_all(out.join("calibration")).map_err(|e| miette::miette!("{e}"))?;
     let (result, truth) = calibrate::simulate_scan(&args, &calibrate::scan_params(&args))?;

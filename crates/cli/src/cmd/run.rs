@@ -46,6 +46,9 @@ pub struct CheckArgs {
     /// Most problems to list.
     #[arg(long, default_value_t = 200)]
     pub max_problems: usize,
+    /// Print the problems and totals as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Load `printer.cfg` and build the machine, with diagnostics pointing into the file.
@@ -178,9 +181,25 @@ pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
         &options,
     );
     bar.finish_and_clear();
-    let report = result.map_err(|e| match e {
-        ExecuteError::Pipeline(e) => pipeline_error(&args.file, e),
-        ExecuteError::Other(report) => report,
+    let report = result.map_err(|e| {
+        let (place, message, report) = match e {
+            ExecuteError::Pipeline(e) => {
+                let (place, message) = match &e {
+                    motion::machine::PipelineError::Gcode(g) => {
+                        ((g.span.line, g.span.column), g.kind.to_string())
+                    }
+                    motion::machine::PipelineError::Plan(p) => {
+                        ((p.span.line, p.span.column), p.kind.to_string())
+                    }
+                };
+                (Some(place), message, pipeline_error(&args.file, e))
+            }
+            ExecuteError::Other(report) => (None, report.to_string(), report),
+        };
+        if args.json {
+            super::print_json_error(&name, place, &message);
+        }
+        report
     })?;
     if args.json {
         crate::outln!(
@@ -379,7 +398,10 @@ pub fn render(r: &RunSummary) -> String {
         );
     }
     for w in r.warnings.iter().take(20) {
-        out += &format!("  warning: line {}:{}: {}\n", w.line, w.column, w.message);
+        out += &format!(
+            "  {}:{}:{}: warning: {}\n",
+            r.file, w.line, w.column, w.message
+        );
     }
     if r.warnings.len() > 20 {
         out += &format!(
@@ -461,25 +483,53 @@ pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let report: CheckReport = check_gcode(&setup, reader, &name, args.max_problems);
     bar.finish_and_clear();
-    for p in &report.problems {
-        let label = match p.severity {
-            Severity::Error => "error",
-            Severity::Warning => "warning",
-        };
+    let label = |p: &motion::machine::Problem| match p.severity {
+        Severity::Error => "error",
+        Severity::Warning => "warning",
+    };
+    let errors = report.errors();
+    if args.json {
+        let problems: Vec<serde_json::Value> = report
+            .problems
+            .iter()
+            .map(|p| {
+                serde_json::json!({
+                    "line": p.span.line,
+                    "column": p.span.column,
+                    "severity": label(p),
+                    "message": p.message,
+                })
+            })
+            .collect();
+        let value = serde_json::json!({
+            "file": name,
+            "errors": errors,
+            "warnings": report.problems.len() - errors,
+            "print_time_s": report.end_time,
+            "slowed_moves": report.slow_moves,
+            "problems": problems,
+        });
         crate::outln!(
-            "{name}:{}:{}: {label}: {}",
-            p.span.line,
-            p.span.column,
-            p.message
+            "{}",
+            serde_json::to_string_pretty(&value).unwrap_or_default()
+        );
+    } else {
+        for p in &report.problems {
+            crate::outln!(
+                "{name}:{}:{}: {}: {}",
+                p.span.line,
+                p.span.column,
+                label(p),
+                p.message
+            );
+        }
+        crate::outln!(
+            "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
+            report.problems.len() - errors,
+            report.end_time,
+            report.slow_moves
         );
     }
-    let errors = report.errors();
-    crate::outln!(
-        "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
-        report.problems.len() - errors,
-        report.end_time,
-        report.slow_moves
-    );
     Ok(if errors > 0 {
         ExitCode::FAILURE
     } else {

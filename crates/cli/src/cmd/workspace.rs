@@ -69,7 +69,8 @@ pub fn map_and_draw(
     stem: &str,
 ) -> miette::Result<WorkspaceFigures> {
     let map = workspace::map_machine(params, cell_mm, 0.0).map_err(|e| miette::miette!("{e}"))?;
-    if !(map.summary.reachable_area_mm2 > 0.0) {
+    let area = map.summary.reachable_area_mm2;
+    if area.is_nan() || area <= 0.0 {
         return Err(miette::miette!(
             "the {} machine reaches no point of the bed on a {cell_mm} mm grid: check its lengths, limits and \
              base_protection_radius (nothing was written)",

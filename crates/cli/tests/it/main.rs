@@ -7,5 +7,6 @@ mod common;
 mod determinism;
 mod fuzz_regressions;
 mod interrupt;
+mod json;
 mod limits;
 mod output;

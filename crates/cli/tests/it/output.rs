@@ -328,3 +328,49 @@ fn a_machine_that_reaches_nothing_is_an_error_not_an_empty_map() {
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
     assert!(json["reachable_area_mm2"].as_f64().expect("area") > 10_000.0);
 }
+
+#[test]
+fn a_map_needs_no_endstops() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    let text = std::fs::read_to_string(example_machine("scara")).expect("config");
+    let without: String = text
+        .lines()
+        .filter(|l| !l.starts_with("endstop_pin") && !l.starts_with("position_endstop"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(!without.contains("endstop_pin"));
+    std::fs::write(dir.join("printer.cfg"), without).expect("write config");
+    let output = jointspace(
+        dir,
+        &["workspace", "-c", "printer.cfg", "-o", "maps", "--json"],
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
+    // The same map as with endstops: they change nothing in where the arm reaches.
+    let cfg = example_machine("scara");
+    let with = jointspace(
+        dir,
+        &[
+            "workspace",
+            "-c",
+            cfg.to_str().expect("utf-8"),
+            "-o",
+            "maps2",
+            "--json",
+        ],
+    );
+    let with: serde_json::Value = serde_json::from_slice(&with.stdout).expect("json");
+    assert_eq!(json["reachable_area_mm2"], with["reachable_area_mm2"]);
+    // Homing is what needs them: G28 is refused at its line.
+    std::fs::write(dir.join("home.gcode"), "G28\n").expect("write");
+    let output = jointspace(dir, &["run", "-c", "printer.cfg", "home.gcode"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1));
+    assert!(
+        stderr.contains("home.gcode:1:1") && stderr.contains("no homing position"),
+        "{stderr}"
+    );
+}

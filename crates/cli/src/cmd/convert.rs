@@ -259,8 +259,8 @@ fn print_text(
     }
 }
 
-/// What makes a verification fail: the path off by more than the tolerance, segments on no input path, or
-/// extrusion different from the input's.
+/// What makes a verification fail: the path off by more than the tolerance, segments on no input path,
+/// extrusion different from the input's, or time off by more than 1 %.
 pub fn verify_problem(r: &convert::VerifyReport, options: &ConvertOptions) -> Option<String> {
     let tolerance = match options.segmentation {
         Segmentation::Adaptive { tolerance } => Some(tolerance),
@@ -283,6 +283,16 @@ pub fn verify_problem(r: &convert::VerifyReport, options: &ConvertOptions) -> Op
         return Some(format!(
             "extrusion {:.5} mm differs from the input's {:.5} mm",
             r.extrusion_out, r.extrusion_in
+        ));
+    }
+    // Turns in place at the polar centre have no Cartesian counterpart: not compared.
+    let t_error = (r.time_out - r.flip_time - r.time_in).abs() / r.time_in.max(1.0);
+    if t_error.is_nan() || t_error > 0.01 {
+        return Some(format!(
+            "the written moves take {:.1} s (besides {:.1} s turning at the centre) against the input's {:.1} s",
+            r.time_out - r.flip_time,
+            r.flip_time,
+            r.time_in
         ));
     }
     None

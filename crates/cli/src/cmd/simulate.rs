@@ -63,6 +63,18 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
         after: after.as_ref().map(RunReport::new),
     };
     crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
+    for name in [
+        "report.txt",
+        "report.json",
+        "overlay.png",
+        "overlay.svg",
+        "deviation-map.png",
+        "overlay-after.png",
+        "overlay-after.svg",
+        "deviation-map-after.png",
+    ] {
+        crate::output::refuse_input(&args.out.join(name)).map_err(crate::cmd::plain)?;
+    }
     sim::write_report(&args.out, &report, &before, after.as_ref()).map_err(|e| report_error(&e))?;
     let text = if args.json {
         let mut json = serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?;

@@ -77,6 +77,14 @@ pub fn map_and_draw(
             map.machine
         ));
     }
+    // The maps are `<stem>-….png/svg`: none of them may be an input of this run.
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for entry in entries.flatten() {
+            if entry.file_name().to_string_lossy().starts_with(stem) {
+                crate::output::refuse_input(&entry.path()).map_err(super::plain)?;
+            }
+        }
+    }
     std::fs::create_dir_all(dir)
         .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     let written = plot::workspace::write_workspace_maps(&workspace_data(&map), dir, stem)

@@ -108,6 +108,40 @@ fn no_command_overwrites_its_input_under_any_name() {
         std::fs::read(dir.join("in.gcode")).expect("input"),
         MIXED_MODES.as_bytes()
     );
+    // Outputs named by the command inside a folder: the simulation's report, the workspace maps.
+    std::fs::create_dir(dir.join("report")).expect("mkdir");
+    std::fs::copy(dir.join("in.gcode"), dir.join("report/report.txt")).expect("copy");
+    let output = jointspace(
+        dir,
+        &[
+            "simulate",
+            "-c",
+            cfg,
+            "--actual",
+            cfg,
+            "report/report.txt",
+            "-o",
+            "report",
+        ],
+    );
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("refusing to write"));
+    assert_eq!(
+        std::fs::read(dir.join("report/report.txt")).expect("input"),
+        MIXED_MODES.as_bytes()
+    );
+    std::fs::create_dir(dir.join("maps")).expect("mkdir");
+    std::fs::copy(&config, dir.join("maps/workspace-reach.png")).expect("copy");
+    let output = jointspace(
+        dir,
+        &["workspace", "-c", "maps/workspace-reach.png", "-o", "maps"],
+    );
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("refusing to write"));
+    assert_eq!(
+        std::fs::read(dir.join("maps/workspace-reach.png")).expect("config"),
+        config_text
+    );
     // A different file is fine.
     let output = jointspace(dir, &["convert", "-c", cfg, "in.gcode", "-o", "out.gcode"]);
     assert!(

@@ -143,16 +143,32 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
     // The machine starts where homing leaves it; without a homing pose nothing unknown is guessed.
     options.home = setup.home_position;
     let map = axis_map(&args, &machine.params)?;
-    if args.verify && (output::is_stdio(&args.out) || output::is_stdio(&args.file)) {
-        return Err(miette::miette!(
-            "--verify re-reads the input and the written file: it needs both as files, not `-`"
-        )
-        .into());
+    if args.verify && output::is_stdio(&args.file) {
+        return Err(
+            miette::miette!("--verify re-reads the input: give it as a file, not `-`").into(),
+        );
     }
+    // Written to standard output and verified: every byte also goes to a scratch copy, which is re-read.
+    let copy = if args.verify && output::is_stdio(&args.out) {
+        Some(
+            tempfile::NamedTempFile::new()
+                .map_err(|e| miette::miette!("cannot create a scratch copy to verify: {e}"))?,
+        )
+    } else {
+        None
+    };
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let mut stats = None;
     let mut warnings = (Vec::new(), 0);
     output::write_output(&args.out, |out| {
+        let mut tee;
+        let out: &mut dyn std::io::Write = match &copy {
+            Some(file) => {
+                tee = Tee(out, std::io::BufWriter::new(file.reopen()?));
+                &mut tee
+            }
+            None => out,
+        };
         let mut converter = Converter::new(map.clone(), options.clone(), out)?;
         warnings = convert::convert_gcode(reader, &name, &mut converter)?;
         let (_, s) = converter.finish()?;
@@ -176,8 +192,11 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
             .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
         let commands = convert::read_commands(std::io::BufReader::new(input), &name)
             .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
-        let written = std::fs::File::open(&args.out)
-            .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
+        let written = match &copy {
+            Some(file) => file.reopen(),
+            None => std::fs::File::open(&args.out),
+        }
+        .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
         let r = convert::verify(&map, &options, &commands, std::io::BufReader::new(written))
             .map_err(|e| miette::miette!("{}: {e}", args.out.display()))?;
         verification = Some(r);
@@ -199,11 +218,12 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
             "verification": verification.as_ref().map(verify_json),
             "verification_failure": problem,
         });
-        if !output::is_stdio(&args.out) {
-            crate::outln!(
-                "{}",
-                serde_json::to_string_pretty(&value).unwrap_or_default()
-            );
+        let text = serde_json::to_string_pretty(&value).unwrap_or_default();
+        // With `-o -` standard output is the G-code: the report goes to standard error.
+        if output::is_stdio(&args.out) {
+            eprintln!("{text}");
+        } else {
+            crate::outln!("{text}");
         }
     } else {
         print_text(&args, &name, stats, verification.as_ref(), &options);
@@ -213,6 +233,22 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
         return Ok(ExitCode::FAILURE);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Writes everything to both.
+struct Tee<'a, B: std::io::Write>(&'a mut dyn std::io::Write, B);
+
+impl<B: std::io::Write> std::io::Write for Tee<'_, B> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.write_all(buf)?;
+        self.1.write_all(buf)?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()?;
+        self.1.flush()
+    }
 }
 
 /// The verification figures as JSON.
@@ -250,12 +286,22 @@ fn print_text(
         );
     }
     if let Some(r) = verification {
-        crate::outln!(
+        let text = format!(
             "verification ({} reading {}): {}",
             options.firmware.name(),
-            args.out.display(),
+            if output::is_stdio(&args.out) {
+                "what went to standard output".to_string()
+            } else {
+                args.out.display().to_string()
+            },
             render_verify(r)
         );
+        // With `-o -` standard output is the G-code: the report goes to standard error.
+        if output::is_stdio(&args.out) {
+            eprintln!("{text}");
+        } else {
+            crate::outln!("{text}");
+        }
     }
 }
 

@@ -170,6 +170,19 @@ fn dash_writes_standard_output_not_a_file_named_dash() {
         "{stdout}"
     );
     assert!(stdout.contains("G1 "), "{stdout}");
+    // Verified too: from a copy of what went out; the report on standard error, the G-code alone on stdout.
+    let output = jointspace(
+        dir,
+        &["convert", "-c", cfg, "in.gcode", "-o", "-", "--verify"],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&output.stdout), stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("filament 0.50000 → 0.50000 mm"), "{stderr}");
     let output = jointspace(dir, &["run", "-c", cfg, "in.gcode", "--moves", "-"]);
     assert!(
         output.status.success(),

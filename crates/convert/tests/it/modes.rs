@@ -147,11 +147,23 @@ fn verification_catches_a_stray_mode_line_as_the_firmware_reads_it() {
 
 #[test]
 fn corpus_extrusion_read_back_by_each_firmware_equals_the_input() {
-    let map = polar_map();
+    corpus_read_back(&polar_map(), [0.0, 0.0], 300.0);
+}
+
+#[test]
+fn corpus_extrusion_read_back_on_a_scara_equals_the_input() {
+    let map = AxisMap::motors(machines::scara(), Target::Joints).expect("SCARA map");
+    corpus_read_back(&map, [0.0, 130.0], 60.0);
+}
+
+/// Every corpus file placed within `radius` of `at`, converted with relative and absolute E, re-read by each
+/// firmware: path within the tolerance, every segment on its move, extrusion equal within 1e-6.
+fn corpus_read_back(map: &AxisMap, at: [f64; 2], radius: f64) {
+    let map = map.clone();
     let files = corpus_files();
     for (name, text) in &files {
         let commands = read_commands(&text[..], name).expect("corpus parses");
-        let (scale, translate) = placement(&commands, [0.0, 0.0], 300.0);
+        let (scale, translate) = placement(&commands, at, radius);
         for extrusion in EXTRUSIONS {
             let options = ConvertOptions {
                 extrusion,

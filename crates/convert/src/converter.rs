@@ -232,10 +232,10 @@ impl<W: Write> Converter<W> {
             }
             Command::Arc(a) => {
                 check_magnitudes(span, &a.target)?;
-                if !relative_axes {
-                    // An arc's end point is absolute in X and Y (an axis it leaves out stays where it was).
-                    self.known[0] |= self.known[1];
-                    self.known[1] |= self.known[0];
+                // Arcs are absolute (the interpreter refuses them under G91); an axis the arc leaves out keeps
+                // its value, so only an end that differs from the start was given.
+                for i in 0..3 {
+                    self.known[i] |= a.target[i] != a.start[i];
                 }
                 self.arc(span, a)
             }

@@ -216,6 +216,15 @@ fn an_unknown_coordinate_is_refused_or_taken_from_the_homing_pose() {
         )
         .is_ok()
     );
+    // An arc's end names its axes (from an unknown start it is a positioning move); one it leaves out is
+    // not known.
+    let arc = convert_text(
+        &map,
+        &ConvertOptions::default(),
+        b"G1 Z1\nG3 X10 Y10 I10 J0 F600\n",
+    );
+    assert!(arc.is_ok(), "{arc:?}");
+    assert_eq!(unknown(b"G1 Z1\nG2 X20 I10 J0 F600\n"), (2, 'Y'));
 
     // With the homing pose (as `convert` takes from the config), the machine starts there and G28 returns
     // there: Z is the homed Z, not 0.

@@ -45,6 +45,15 @@ pub struct Warning {
     pub message: String,
 }
 
+/// The end point of a move or arc.
+fn target_of(cmd: &Spanned<Command>) -> Option<[f64; 4]> {
+    match &cmd.value {
+        Command::Move(mv) => Some(mv.target),
+        Command::Arc(arc) => Some(arc.target),
+        _ => None,
+    }
+}
+
 fn xyz_of(p: [f64; 4]) -> [f64; 3] {
     [p[0], p[1], p[2]]
 }
@@ -102,19 +111,32 @@ impl<'k, S: MoveSink> Planner<'k, S> {
     /// `SET_KINEMATIC_POSITION` does); otherwise X, Y and Z stay where the machine is. The extruder takes the
     /// target's E either way, so that the next move's extrusion is its own. Returns the machine position.
     pub fn resync_after_refusal(&mut self, cmd: &Spanned<Command>) -> [f64; 4] {
-        let target = match &cmd.value {
-            Command::Move(mv) => Some(mv.target),
-            Command::Arc(arc) => Some(arc.target),
-            _ => None,
+        let Some(target) = target_of(cmd) else {
+            return self.toolhead.position();
         };
-        if let Some(target) = target {
-            let xyz = [target[0], target[1], target[2]];
-            if self.toolhead.check_point(xyz).is_ok() && xyz != xyz_of(self.toolhead.position()) {
-                self.toolhead.set_position(xyz);
-            }
+        let xyz = [target[0], target[1], target[2]];
+        if self.toolhead.check_point(xyz).is_ok() && xyz != xyz_of(self.toolhead.position()) {
             if target[3].is_finite() {
                 self.toolhead.set_extruder_position(target[3]);
             }
+            self.toolhead.set_position(xyz);
+            return self.toolhead.position();
+        }
+        self.skip(cmd)
+    }
+
+    /// After a move or arc was skipped (`--skip-unreachable`): the machine stays where it is, and the extruder
+    /// is declared at the target's E without pushing filament (as a `G92 E` would), so that the next move
+    /// extrudes its own amount, not the skipped move's as well. Returns the machine position.
+    pub fn skip(&mut self, cmd: &Spanned<Command>) -> [f64; 4] {
+        let position = self.toolhead.position();
+        if let Some(target) = target_of(cmd)
+            && target[3].is_finite()
+            && target[3] != position[3]
+        {
+            self.toolhead.set_extruder_position(target[3]);
+            // Declared to the step generators too: the extruder's steps continue from here, no jump.
+            self.toolhead.set_position(xyz_of(position));
         }
         self.toolhead.position()
     }

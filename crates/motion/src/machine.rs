@@ -354,8 +354,9 @@ pub fn plan_gcode<S: MoveSink>(
             Ok(None) => {}
             Err(e) if setup.planner.skip_unreachable && e.is_unreachable() => {
                 planner.warn(e.span, e.kind.to_string());
-                // The machine stays where it was; later relative moves continue from there.
-                let position = planner.toolhead().position();
+                // The machine stays where it was (later relative moves continue from there); the skipped
+                // move's filament is not pushed by the next one.
+                let position = planner.skip(&command);
                 commands.interpreter_mut().set_position(position);
             }
             Err(e) => return Err(e.into()),

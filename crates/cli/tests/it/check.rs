@@ -81,3 +81,42 @@ fn errors_give_a_non_zero_exit_even_when_the_output_pipe_closed() {
         );
     }
 }
+
+/// Extruder steps of `run --skip-unreachable --json` on `text`.
+fn extruder_steps(text: &str) -> u64 {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("part.gcode");
+    std::fs::write(&input, text).expect("write input");
+    let output = Command::new(binary())
+        .args(["run", "--skip-unreachable", "--json", "-c"])
+        .arg(example_machine("polar"))
+        .arg(&input)
+        .output()
+        .expect("run jointspace");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
+    json["motors"]
+        .as_array()
+        .expect("motors")
+        .iter()
+        .find(|m| m["name"] == "extruder")
+        .and_then(|m| m["steps"].as_u64())
+        .expect("extruder steps")
+}
+
+#[test]
+fn a_skipped_move_pushes_none_of_its_filament_into_the_next() {
+    // Absolute E: line 6 is out of reach and skipped; the next moves extrude 0.5 mm each, as in the same file
+    // without line 6 (before: the first of them tried to push the skipped 10 mm too and run stopped).
+    let skipped = "G28\nM82\nG92 E0\nG1 Z0.3 F600\nG1 X100 Y0 F1800\nG1 X200 Y0 E10\nG1 X100 Y10 E10.5\n\
+G1 X100 Y20 E11\n";
+    let without =
+        "G28\nM82\nG92 E0\nG1 Z0.3 F600\nG1 X100 Y0 F1800\nG1 X100 Y10 E0.5\nG1 X100 Y20 E1\n";
+    let steps = extruder_steps(without);
+    assert!(steps > 50, "{steps}");
+    assert_eq!(extruder_steps(skipped), steps);
+}

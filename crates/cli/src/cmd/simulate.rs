@@ -116,7 +116,13 @@ fn simulate_file(
     let (reader, name, bar) = input::open_gcode(path).map_err(crate::cmd::plain)?;
     let result = sim::simulate(believed, actual, reader, &name, options);
     bar.finish_and_clear();
-    result.map_err(|e| report_error(&e))
+    result.map_err(|e| match e {
+        // A planning error names the G-code file, line and column.
+        SimulationError::Plan(plan @ motion::machine::PipelineError::Plan(_)) => {
+            crate::cmd::run::pipeline_error(path, plan)
+        }
+        other => report_error(&other),
+    })
 }
 
 /// Diagnostics with the source line where the error has one.

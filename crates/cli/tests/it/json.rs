@@ -190,3 +190,32 @@ fn warnings_name_their_file() {
         "{text}"
     );
 }
+
+#[test]
+fn simulate_names_the_file_of_a_planning_error() {
+    let (dir, cfg) = scratch();
+    std::fs::write(
+        dir.path().join("fat.gcode"),
+        "G28\nG1 X10 Y0 Z1 F600\nG1 X20 Y0 E50\n",
+    )
+    .expect("input");
+    let output = jointspace(
+        dir.path(),
+        &[
+            "simulate",
+            "-c",
+            &cfg,
+            "--actual",
+            &cfg,
+            "fat.gcode",
+            "-o",
+            "report",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("fat.gcode:3:1: move exceeds the maximum extrusion cross-section"),
+        "{stderr}"
+    );
+}

@@ -212,17 +212,19 @@ pub enum Severity {
 /// Everything [`check_gcode`] found, and the print time of what could be planned.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CheckReport {
+    /// The first `max_problems` problems found, in file order.
     pub problems: Vec<Problem>,
     pub end_time: f64,
     pub slow_moves: u64,
+    /// Every error and warning found, kept or not.
+    pub error_count: usize,
+    pub warning_count: usize,
 }
 
 impl CheckReport {
+    /// Errors found (all of them, also beyond `max_problems`).
     pub fn errors(&self) -> usize {
-        self.problems
-            .iter()
-            .filter(|p| p.severity == Severity::Error)
-            .count()
+        self.error_count
     }
 }
 
@@ -248,7 +250,12 @@ pub fn check_gcode(
         commands.interpreter_mut().set_position(position);
     }
     let mut problems = Vec::new();
+    let (mut error_count, mut warning_count) = (0, 0);
     let mut push = |problem: Problem| {
+        match problem.severity {
+            Severity::Error => error_count += 1,
+            Severity::Warning => warning_count += 1,
+        }
         if problems.len() < max_problems {
             problems.push(problem);
         }
@@ -315,6 +322,8 @@ pub fn check_gcode(
         problems,
         end_time,
         slow_moves: slow.total,
+        error_count,
+        warning_count,
     }
 }
 

@@ -504,7 +504,7 @@ pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
         let value = serde_json::json!({
             "file": name,
             "errors": errors,
-            "warnings": report.problems.len() - errors,
+            "warnings": report.warning_count,
             "print_time_s": report.end_time,
             "slowed_moves": report.slow_moves,
             "problems": problems,
@@ -525,7 +525,7 @@ pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
         }
         crate::outln!(
             "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
-            report.problems.len() - errors,
+            report.warning_count,
             report.end_time,
             report.slow_moves
         );

@@ -120,3 +120,36 @@ G1 X100 Y20 E11\n";
     assert!(steps > 50, "{steps}");
     assert_eq!(extruder_steps(skipped), steps);
 }
+
+#[test]
+fn errors_beyond_the_listed_ones_still_count() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("part.gcode");
+    std::fs::write(
+        &input,
+        "G28\nG1 X10 Y0 Z1 F600\nG1 X300 Y0\nG1 X10 Y0\nG1 X400 Y0 Q1\n",
+    )
+    .expect("input");
+    for (max, listed) in [("0", 0), ("1", 1), ("200", 3)] {
+        let output = Command::new(binary())
+            .args(["check", "--max-problems", max, "-c"])
+            .arg(example_machine("polar"))
+            .arg(&input)
+            .output()
+            .expect("run jointspace");
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        assert_eq!(
+            output.status.code(),
+            Some(1),
+            "--max-problems {max}: {stdout}"
+        );
+        assert!(stdout.contains(": 2 errors, 1 warnings;"), "{stdout}");
+        assert_eq!(
+            stdout
+                .lines()
+                .filter(|l| l.contains(": error: ") || l.contains(": warning: "))
+                .count(),
+            listed
+        );
+    }
+}

@@ -120,6 +120,16 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     } else {
         return Err(miette::miette!("give --simulate or --scan FILE"));
     };
+    // No output may replace an input; all are checked before any is written.
+    let mut outputs = vec![args.out.clone()];
+    outputs.extend(args.save_scan.clone());
+    if let Some(png) = &args.plot {
+        outputs.push(png.clone());
+        outputs.push(png.with_extension("svg"));
+    }
+    for path in &outputs {
+        crate::output::refuse_input(path).map_err(super::plain)?;
+    }
     if let Some(path) = &args.save_scan {
         let text = calibrate::scan::write_detections(&result);
         crate::output::write_output(path, |w| Ok(w.write_all(text.as_bytes())?))
@@ -142,7 +152,6 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
         }
     }
     if let Some(png) = &args.plot {
-        crate::output::refuse_input(png).map_err(super::plain)?;
         draw_magnet_map(&result, png)?;
         if !args.json {
             crate::outln!("  magnet map drawn in {}", png.display());

@@ -142,6 +142,29 @@ fn no_command_overwrites_its_input_under_any_name() {
         std::fs::read(dir.join("maps/workspace-reach.png")).expect("config"),
         config_text
     );
+    // calibrate: the picture's SVG sibling is an output too, and nothing is written when one is refused.
+    let scan = "# scan\nmagnet,side,arm_mm,bed_deg\n0,near,99,10\n0,far,-101,190\n1,near,99,130\n1,far,-101,310\n\
+2,near,99,250\n2,far,-101,70\n";
+    std::fs::write(dir.join("map.svg"), scan).expect("scan");
+    let output = jointspace(
+        dir,
+        &[
+            "calibrate",
+            "centre",
+            "--scan",
+            "map.svg",
+            "-o",
+            "c.json",
+            "--plot",
+            "map.png",
+        ],
+    );
+    assert!(String::from_utf8_lossy(&output.stderr).contains("refusing to write"));
+    assert!(!dir.join("c.json").exists() && !dir.join("map.png").exists());
+    assert_eq!(
+        std::fs::read_to_string(dir.join("map.svg")).expect("scan"),
+        scan
+    );
     // A different file is fine.
     let output = jointspace(dir, &["convert", "-c", cfg, "in.gcode", "-o", "out.gcode"]);
     assert!(

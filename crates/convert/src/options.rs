@@ -267,6 +267,36 @@ mod tests {
     use super::*;
 
     #[test]
+    fn each_firmware_reads_mode_lines_its_own_way() {
+        // E relative after each sequence of mode lines: (Marlin, RRF, Klipper).
+        let cases: [(&[&str], [bool; 3]); 6] = [
+            (&[], [false, false, false]),
+            (&["M83"], [true, true, true]),
+            (&["G91"], [true, false, true]),
+            (&["M83", "G90"], [false, true, true]),
+            (&["M82", "G91", "G90"], [false, false, false]),
+            (&["G91", "M82"], [false, false, true]),
+        ];
+        for (lines, expected) in cases {
+            for (firmware, relative) in [Firmware::Marlin, Firmware::Rrf, Firmware::Klipper]
+                .into_iter()
+                .zip(expected)
+            {
+                let mut modes = ModeState::new(firmware);
+                for line in lines {
+                    match *line {
+                        "G90" => modes.axes_mode(false),
+                        "G91" => modes.axes_mode(true),
+                        "M82" => modes.extrusion_mode(false),
+                        _ => modes.extrusion_mode(true),
+                    }
+                }
+                assert_eq!(modes.relative_e(), relative, "{firmware:?} after {lines:?}");
+            }
+        }
+    }
+
+    #[test]
     fn default_rounding_is_far_below_the_default_tolerance() {
         let budget = ConvertOptions::default().rounding_budget([MotorUnit::Mm, MotorUnit::Rad]);
         // 4 decimals of mm (0.5e-4) and 6 of a degree at 1 m (8.7e-6).

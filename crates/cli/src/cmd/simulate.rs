@@ -104,6 +104,7 @@ fn print_stdout(text: &str) -> miette::Result<()> {
 }
 
 fn load_config(path: &Path) -> miette::Result<config::MachineConfig> {
+    crate::output::register_input(path);
     config::MachineConfig::load(path).map_err(|e| miette::Report::new(diag::config_error(&e)))
 }
 

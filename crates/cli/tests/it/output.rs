@@ -130,6 +130,25 @@ fn no_command_overwrites_its_input_under_any_name() {
         std::fs::read(dir.join("report/report.txt")).expect("input"),
         MIXED_MODES.as_bytes()
     );
+    std::fs::copy(&config, dir.join("report/report.json")).expect("copy");
+    let output = jointspace(
+        dir,
+        &[
+            "simulate",
+            "-c",
+            "report/report.json",
+            "--actual",
+            cfg,
+            "in.gcode",
+            "-o",
+            "report",
+        ],
+    );
+    assert!(String::from_utf8_lossy(&output.stderr).contains("refusing to write"));
+    assert_eq!(
+        std::fs::read(dir.join("report/report.json")).expect("config"),
+        config_text
+    );
     std::fs::create_dir(dir.join("maps")).expect("mkdir");
     std::fs::copy(&config, dir.join("maps/workspace-reach.png")).expect("copy");
     let output = jointspace(

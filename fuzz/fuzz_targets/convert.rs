@@ -47,9 +47,12 @@ fuzz_target!(|data: &[u8]| {
     if goes_far_outside(data) {
         return;
     }
-    let Ok(mut converter) =
-        Converter::new(axis_map().clone(), ConvertOptions::default(), Vec::new())
-    else {
+    // Homed, as the CLI converts (without a homing pose most inputs stop at their first unset Z).
+    let options = ConvertOptions {
+        home: Some([100.0, 0.0, 0.0]),
+        ..ConvertOptions::default()
+    };
+    let Ok(mut converter) = Converter::new(axis_map().clone(), options, Vec::new()) else {
         return;
     };
     if convert_gcode(data, "fuzz.gcode", &mut converter).is_err() {

@@ -45,6 +45,8 @@ impl Row<'_> {
 pub(crate) fn data_rows<'a>(text: &'a str, header: &[&str]) -> Result<Vec<Row<'a>>, CsvError> {
     let mut rows = Vec::new();
     let mut header_seen = false;
+    // A byte-order mark (spreadsheets on Windows write one) is not part of the first field.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     for (i, raw) in text.lines().enumerate() {
         let content = raw.split('#').next().unwrap_or("");
         if content.trim().is_empty() {
@@ -106,6 +108,16 @@ fn split_fields(content: &str) -> Vec<(usize, &str)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_byte_order_mark_is_not_part_of_the_header() {
+        let rows = data_rows("\u{feff}magnet,side\n0,near\n", &["magnet", "side"]).expect("reads");
+        assert_eq!(rows.len(), 1);
+        assert_eq!(rows[0].fields, vec![(1, "0"), (3, "near")]);
+        // A stray one inside is still wrong, and named.
+        let e = data_rows("magnet,\u{feff}side\n", &["magnet", "side"]).expect_err("refused");
+        assert!(e.message.contains("should be `side`"), "{}", e.message);
+    }
 
     #[test]
     fn rows_keep_their_columns_and_skip_comments() {

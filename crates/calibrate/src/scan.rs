@@ -2,19 +2,22 @@
 //! sensor, peaks each one with sub-step interpolation, and turns the magnet detections into the arm's zero
 //! offset `dx` and lateral offset `dy` relative to the bed's rotation centre.
 //!
-//! # Conventions (they match `kinematics::PolarParams`)
+//! # Conventions: the machine's own (`kinematics::polar`, Klipper's polar, what `convert` writes)
 //! Machine frame: origin on the bed's rotation axis, +x along the arm. With the arm reading `r` the sensor
-//! (aligned with the nozzle) sits at `(r + dx, dy)`: `dx` = `arm_zero_offset` (where the arm's zero really
-//! is, along the arm), `dy` = `arm_lateral_offset` (sideways offset of the arm's line). A bed point `m`
-//! (bed frame) is at `Rot(θ)·m` when the bed reads `θ`; so a magnet is under the sensor when
-//! `Rot(θ)·m = (r + dx, dy)`, the same relation as the polar inverse `φ = atan2(dy, dx + r) − atan2(p)`.
+//! (aligned with the nozzle) sits at `N(r) = (r + dx, dy)`: `dx` = `arm_zero_offset` (where the arm's zero
+//! really is, along the arm), `dy` = `arm_lateral_offset` (sideways offset of the arm's line). The bed angle
+//! `θ` is the bed motor's reading with the kinematics' sign: the bed point under the sensor is
+//! `p = Rot(θ)·N(r)` (an ideal machine puts bed point `(r cos θ, r sin θ)` under the nozzle, as
+//! `kinematics::polar` and Klipper's polar do; `convert` writes this `θ`). So a magnet `m` (bed frame) is
+//! under the sensor when `m = Rot(θ)·(r + dx, dy)`: the polar inverse `θ = atan2(m) − atan2(dy, dx + r)`.
+//! Physically the bed has turned by `−θ`; logs that record the physical rotation must negate it.
 //!
 //! # What a scan can observe
 //! Seen from one side of the centre only, every magnet gives `(r + dx)² + dy² = ρ²` and an angle that is
 //! confounded with the (declared) bed zero: `dx` and `dy` cannot be separated from the unknown magnet
 //! radii. The scan therefore peaks every magnet twice, on the near side (`r⁺ ≈ ρ`) and on the far side of
 //! the centre (`r⁻ ≈ −ρ`, bed turned by ≈ π). For one magnet, exactly and independently of where it was
-//! placed: `dx = −(r⁺ + r⁻)/2`, `h = (r⁺ − r⁻)/2`, `θ⁻ − θ⁺ = π − 2·atan(dy/h)`. The per-magnet pairs are
+//! placed: `dx = −(r⁺ + r⁻)/2`, `h = (r⁺ − r⁻)/2`, `θ⁺ − θ⁻ = π − 2·atan(dy/h)`. The per-magnet pairs are
 //! combined robustly (median screen, then mean and covariance). The magnet map (each magnet in the bed frame
 //! with the fitted offsets) gets a robust geometric circle fit, which gives the ring's own eccentricity and
 //! per-magnet residuals for the plot. The arm must reach `−ρ` (`arm_min`); a machine whose arm passes the
@@ -97,6 +100,14 @@ pub struct ScanParams {
     /// Settling + ADC time per sensor reading (s).
     pub read_time: f64,
     pub method: PeakMethod,
+    /// How well the Hall sensor's axis is known to sit on the nozzle (mm, 1σ per direction). The scan finds
+    /// where the *sensor* reads each magnet's peak; a sensor mounted beside the nozzle, or tilted by `α` at
+    /// height `h` (it then reads a magnet `h·tan α` away), shifts `dx` and `dy` by exactly that offset, and no
+    /// scan can see it. It is added to the reported uncertainty.
+    pub sensor_alignment: f64,
+    /// A magnet whose peak field differs from the ring's median by more than this fraction is flagged (a
+    /// wrong, damaged or sunk magnet).
+    pub peak_tolerance: f64,
 }
 
 impl Default for ScanParams {
@@ -122,6 +133,8 @@ impl Default for ScanParams {
             bed_accel: 20.0,
             read_time: 0.004,
             method: PeakMethod::Interpolated,
+            sensor_alignment: 0.05,
+            peak_tolerance: 0.2,
         }
     }
 }
@@ -178,11 +191,22 @@ pub struct CentreResult {
     pub arm_zero_offset: f64,
     /// `dy`: sideways offset of the arm's line from the rotation centre (mm).
     pub arm_lateral_offset: f64,
-    /// Standard errors (mm).
+    /// Standard errors (mm): the scan's own scatter and the sensor's alignment to the nozzle, which the scan
+    /// cannot observe ([`ScanParams::sensor_alignment`]).
     pub sigma_arm_zero_offset: f64,
     pub sigma_arm_lateral_offset: f64,
-    /// Covariance of (dx, dy) (mm²).
+    /// Covariance of (dx, dy) (mm²), both parts.
     pub covariance: [[f64; 2]; 2],
+    /// The scan's own part of the standard errors (scatter of the magnet pairs), mm.
+    #[serde(default)]
+    pub sigma_scan: [f64; 2],
+    /// The sensor-alignment part (1σ per direction, mm).
+    #[serde(default)]
+    pub sensor_alignment: f64,
+    /// What looked wrong and was left out or should be checked: magnets missing or seen on one side only, pairs
+    /// off the others (moved or wrong magnets), peaks unlike the others, magnets off the ring.
+    #[serde(default)]
+    pub flags: Vec<String>,
     pub magnet_count: usize,
     /// Magnets seen on at least one side.
     pub detected: usize,
@@ -313,14 +337,19 @@ fn validate(p: &ScanParams) -> Result<(), ScanError> {
             "magnet_count must be at least 3".into(),
         ));
     }
-    if !(p.max_offset.is_finite()
-        && p.max_offset >= 0.0
-        && p.read_time.is_finite()
-        && p.read_time >= 0.0)
+    let non_negative = [
+        ("max_offset", p.max_offset),
+        ("read_time", p.read_time),
+        ("sensor_alignment", p.sensor_alignment),
+        ("peak_tolerance", p.peak_tolerance),
+    ];
+    if let Some((name, v)) = non_negative
+        .iter()
+        .find(|(_, v)| !(v.is_finite() && *v >= 0.0))
     {
-        return Err(ScanError::InvalidParams(
-            "max_offset and read_time must be non-negative".into(),
-        ));
+        return Err(ScanError::InvalidParams(format!(
+            "{name} must be a non-negative number, got {v}"
+        )));
     }
     if p.arm_home <= p.ring_radius + p.max_offset {
         return Err(ScanError::InvalidParams(
@@ -568,12 +597,86 @@ fn parabola_vertex(xs: &[f64], ys: &[f64], origin: f64) -> Option<(f64, f64)> {
     (u.is_finite() && v.is_finite()).then_some((origin + u, v))
 }
 
-/// Offsets from one magnet seen on both sides (exact for any magnet placement).
+/// Offsets from one magnet seen on both sides (exact for any magnet placement). With `h = (r⁺ − r⁻)/2` the
+/// sensor is at `(h, dy)` on the near side and `(−h, dy)` on the far side, and the magnet's bed angle is
+/// `θ⁺ + atan(dy/h) = θ⁻ + π − atan(dy/h)`: `θ⁺ − θ⁻ = π − 2·atan(dy/h)`.
 pub fn pair_offsets(near: &Detection, far: &Detection) -> [f64; 2] {
     let dx = -0.5 * (near.r + far.r);
     let h = 0.5 * (near.r - far.r);
-    let delta = PI - (far.theta - near.theta).rem_euclid(TAU);
+    let delta = PI - (near.theta - far.theta).rem_euclid(TAU);
     [dx, h * (0.5 * delta).tan()]
+}
+
+/// What a scan found wrong with the ring (see [`CentreResult::flags`]).
+fn flags(
+    params: &ScanParams,
+    magnets: &[MagnetRecord],
+    median_offset: [f64; 2],
+    ring: Option<&CircleFit>,
+) -> Vec<String> {
+    let mut flags = Vec::new();
+    for m in magnets {
+        let k = m.index;
+        match (m.near, m.far, m.pair_offset) {
+            (None, None, _) => flags.push(format!("magnet {k} was not found (missing?)")),
+            (Some(_), None, _) => flags.push(format!(
+                "magnet {k} was seen on the near side only: not used"
+            )),
+            (None, Some(_), _) => flags.push(format!(
+                "magnet {k} was seen on the far side only: not used"
+            )),
+            (_, _, Some(p)) if !m.used => flags.push(format!(
+                "magnet {k}'s pair gives dx {:+.4}, dy {:+.4} mm, {:.4} mm from the others' median: not used \
+                 (moved between the two sides, or not a magnet of the ring)",
+                p[0],
+                p[1],
+                (p[0] - median_offset[0]).hypot(p[1] - median_offset[1])
+            )),
+            _ => {}
+        }
+    }
+    let peaks: Vec<(usize, f64)> = magnets
+        .iter()
+        .flat_map(|m| {
+            m.near
+                .iter()
+                .chain(m.far.iter())
+                .map(move |d| (m.index, d.peak))
+        })
+        .filter(|(_, p)| *p != 0.0)
+        .collect();
+    if peaks.len() >= 3 {
+        let typical = median(&peaks.iter().map(|p| p.1).collect::<Vec<_>>());
+        let mut flagged = Vec::new();
+        for (k, peak) in peaks {
+            if (peak - typical).abs() > params.peak_tolerance * typical.abs()
+                && !flagged.contains(&k)
+            {
+                flagged.push(k);
+                flags.push(format!(
+                    "magnet {k} peaks at {:.1} mT against the ring's {:.1} mT (a different, damaged or sunk \
+                     magnet?)",
+                    peak * 1e3,
+                    typical * 1e3
+                ));
+            }
+        }
+    }
+    if let Some(fit) = ring {
+        let placed: Vec<&MagnetRecord> = magnets.iter().filter(|m| m.position.is_some()).collect();
+        for &i in &fit.outliers {
+            if let Some(m) = placed.get(i)
+                && let Some(residual) = m.ring_residual
+            {
+                flags.push(format!(
+                    "magnet {} is {:.3} mm off the ring (placement; dx and dy do not depend on it)",
+                    m.index,
+                    residual.abs()
+                ));
+            }
+        }
+    }
+    flags
 }
 
 /// Median of a non-empty slice.
@@ -650,7 +753,7 @@ fn scan_far_side<H: ScanHardware>(
             Some([dx, dy]) => {
                 let h = nd.r + dx;
                 let r_pred = -nd.r - 2.0 * dx;
-                let t_pred = nd.theta + PI - 2.0 * (dy / h).atan() + turn;
+                let t_pred = nd.theta + PI + 2.0 * (dy / h).atan() + turn;
                 s.locate(r_pred, t_pred, 2.0 * p.coarse_step)?
             }
         };
@@ -695,7 +798,8 @@ pub const DETECTIONS_HEADER: [&str; 4] = ["magnet", "side", "arm_mm", "bed_deg"]
 
 /// Parse a detections file: `#` comments, blank lines skipped, a header `magnet,side,arm_mm,bed_deg`, then
 /// one detection per line (`magnet` a 0-based index, `side` `near` or `far`, the arm reading in mm and the
-/// unwrapped bed reading in degrees at the magnet's centre). Returns (near, far) slots per magnet index.
+/// unwrapped bed motor reading in degrees at the magnet's centre, in the kinematics' sign: see the module
+/// documentation). Returns (near, far) slots per magnet index.
 /// Errors carry `file:line:column`.
 pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanError> {
     let located = |e: crate::csv::CsvError| ScanError::Parse {
@@ -754,6 +858,32 @@ pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanEr
         }
     }
     Ok(slots)
+}
+
+/// The header comment of a detections file written by [`write_detections`]: what each column means and which
+/// sign the bed angle has.
+pub const DETECTIONS_PREAMBLE: &str = "\
+# jointspace centre scan: each magnet's centre as the Hall sensor peaked it, on the near and the far side
+# of the bed's rotation centre.
+# arm_mm: the arm's reading (mm from its zero). bed_deg: the bed motor's reading (degrees, unwrapped) in the
+# machine's sign, as Klipper's polar kinematics and `jointspace convert` use it: an ideal machine has bed
+# point (r*cos(bed), r*sin(bed)) under the nozzle. The bed itself has turned by -bed_deg.
+";
+
+/// A detections file (see [`parse_detections`]) of a scan's result: the preamble, the header, and one line per
+/// detection with every digit of the readings.
+pub fn write_detections(result: &CentreResult) -> String {
+    let mut text = String::from(DETECTIONS_PREAMBLE);
+    text += &DETECTIONS_HEADER.join(",");
+    text.push('\n');
+    for m in &result.magnets {
+        for (side, d) in [("near", m.near), ("far", m.far)] {
+            if let Some(d) = d {
+                text += &format!("{},{side},{},{}\n", m.index, d.r, d.theta.to_degrees());
+            }
+        }
+    }
+    text
 }
 
 /// Detections per magnet index, near and far side.
@@ -834,11 +964,16 @@ fn assemble(
             }
         }
     }
+    let sigma_scan = [cov[0][0].sqrt(), cov[1][1].sqrt()];
+    let alignment = params.sensor_alignment * params.sensor_alignment;
+    cov[0][0] += alignment;
+    cov[1][1] += alignment;
     let [dx, dy] = mean;
     for m in &mut magnets {
+        // The bed point under the sensor: Rot(θ)·(r + dx, dy).
         let to_bed = |d: &Detection| -> Point {
             let (x, y) = (d.r + dx, dy);
-            let (s, c) = (-d.theta).sin_cos();
+            let (s, c) = d.theta.sin_cos();
             [c * x - s * y, s * x + c * y]
         };
         let pts: Vec<Point> = m.near.iter().chain(m.far.iter()).map(to_bed).collect();
@@ -858,12 +993,16 @@ fn assemble(
         }
     }
     let map_centroid = circle::centroid(&map).ok();
+    let flags = flags(params, &magnets, med, ring.as_ref());
     Ok(CentreResult {
         arm_zero_offset: dx,
         arm_lateral_offset: dy,
         sigma_arm_zero_offset: cov[0][0].sqrt(),
         sigma_arm_lateral_offset: cov[1][1].sqrt(),
         covariance: cov,
+        sigma_scan,
+        sensor_alignment: params.sensor_alignment,
+        flags,
         magnet_count: params.magnet_count,
         detected: magnets
             .iter()
@@ -909,12 +1048,12 @@ mod tests {
         let h = (rho * rho - dy * dy).sqrt();
         let near = Detection {
             r: h - dx,
-            theta: dy.atan2(h) - alpha,
+            theta: alpha - dy.atan2(h),
             peak: 0.0,
         };
         let far = Detection {
             r: -h - dx,
-            theta: dy.atan2(-h) - alpha + 4.0 * PI,
+            theta: alpha - dy.atan2(-h) + 4.0 * PI,
             peak: 0.0,
         };
         let [ex, ey] = pair_offsets(&near, &far);

@@ -1,12 +1,14 @@
 //! Opening inputs: a G-code file (or `-` for standard input) behind a buffered, progress-reporting reader.
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
+use std::time::{Duration, Instant};
 
-/// A buffered reader over a file or stdin, with a progress bar on stderr for large files
-/// (hidden automatically when stderr is not a terminal).
+/// A buffered reader over a file or stdin, with a progress bar on stderr for a file whose reading takes more
+/// than [`PROGRESS_DELAY`] (hidden automatically when stderr is not a terminal).
 pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, ProgressBar)> {
+    crate::output::register_input(path);
     if path == Path::new("-") {
         let bar = ProgressBar::hidden();
         let reader = Interruptible(std::io::stdin());
@@ -19,23 +21,46 @@ pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, Prog
     let file = std::fs::File::open(path)
         .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
     let size = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let bar = if size > 16 << 20 {
-        let bar = ProgressBar::new(size);
-        if let Ok(style) =
-            ProgressStyle::with_template("{bar:40} {bytes}/{total_bytes} {bytes_per_sec} eta {eta}")
-        {
-            bar.set_style(style);
-        }
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
-    let reader: Box<dyn Read> = Box::new(Interruptible(bar.wrap_read(file)));
+    // Hidden at first; shown (on a terminal) once reading has taken a second, whatever the file's size: a
+    // short run shows nothing, a long one (a slow simulation of a small file too) shows where it is.
+    let bar = ProgressBar::with_draw_target(Some(size), ProgressDrawTarget::hidden());
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:40} {bytes}/{total_bytes} {bytes_per_sec} eta {eta}")
+    {
+        bar.set_style(style);
+    }
+    let reader: Box<dyn Read> = Box::new(Interruptible(DelayedBar {
+        inner: bar.wrap_read(file),
+        bar: bar.clone(),
+        started: Instant::now(),
+        shown: false,
+    }));
     Ok((
         Box::new(BufReader::with_capacity(1 << 16, reader)),
         path.display().to_string(),
         bar,
     ))
+}
+
+/// How long a run reads before its progress bar appears.
+pub const PROGRESS_DELAY: Duration = Duration::from_secs(1);
+
+/// Shows `bar` on standard error once reading has gone on for [`PROGRESS_DELAY`].
+struct DelayedBar<R> {
+    inner: R,
+    bar: ProgressBar,
+    started: Instant,
+    shown: bool,
+}
+
+impl<R: Read> Read for DelayedBar<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if !self.shown && self.started.elapsed() >= PROGRESS_DELAY {
+            self.shown = true;
+            self.bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+        self.inner.read(buf)
+    }
 }
 
 /// A reader that fails once the user pressed Ctrl-C: every pipeline reading through it stops with an error,
@@ -48,5 +73,33 @@ impl<R: Read> Read for Interruptible<R> {
             return Err(std::io::Error::other(crate::interrupt::INTERRUPTED_MESSAGE));
         }
         self.0.read(buf)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn delayed(started: Instant) -> DelayedBar<&'static [u8]> {
+        DelayedBar {
+            inner: b"G1 X1\n",
+            bar: ProgressBar::hidden(),
+            started,
+            shown: false,
+        }
+    }
+
+    #[test]
+    fn the_bar_appears_after_a_second_of_reading_whatever_the_size() {
+        let mut buf = [0u8; 4];
+        let mut quick = delayed(Instant::now());
+        assert_eq!(quick.read(&mut buf).expect("read"), 4);
+        assert!(!quick.shown, "a short run shows no bar");
+        let Some(long_ago) = Instant::now().checked_sub(PROGRESS_DELAY * 2) else {
+            return;
+        };
+        let mut slow = delayed(long_ago);
+        assert_eq!(slow.read(&mut buf).expect("read"), 4);
+        assert!(slow.shown, "a long run of a 6-byte input shows its bar");
     }
 }

@@ -156,8 +156,19 @@ fn read_rotation_distance(section: &Section, units: StepperUnits) -> Result<f64,
 
 type RailRange = (Option<f64>, Option<f64>, Option<HomingConfig>);
 
-/// `PrinterRail`: endstop, range and homing direction.
+/// `PrinterRail`: endstop, range and homing direction. A rail without `endstop_pin` (Klipper requires one)
+/// is read for its geometry: it cannot home (a `G28` is refused at its line), its range is what is given.
 fn read_rail(section: &Section) -> Result<RailRange, ConfigError> {
+    if !section.contains("endstop_pin") {
+        // Homing keys have nothing to act on here; they are not typos.
+        for key in ["position_endstop", "homing_speed", "homing_positive_dir"] {
+            section.mark_read(key);
+        }
+        let position_min = section.get_f64_opt("position_min", Bounds::NONE)?;
+        let above = position_min.map_or(Bounds::NONE, |min| Bounds::NONE.above(min));
+        let position_max = section.get_f64_opt("position_max", above)?;
+        return Ok((position_min, position_max, None));
+    }
     let endstop_pin = section.get_pin("endstop_pin", true)?;
     // A probe's virtual endstop gets its position from the probe's z_offset.
     let is_probe = endstop_pin.chip.as_deref() == Some("probe");

@@ -4,9 +4,13 @@
 //!
 //! Output conventions:
 //! - Axes are absolute (`G90` in the header), in mm; planar axes are the two output axes (see
-//!   [`crate::Target`]), Z is Cartesian Z, E follows [`Extrusion`] (`M83` or `M82` in the header). Input
-//!   `G90/G91/M82/M83/G20/G21` lines are kept as comments (the interpreter already applied them);
+//!   [`crate::Target`]), Z is Cartesian Z, E follows [`Extrusion`] (`M83` or `M82` in the header, after the
+//!   `G90`, which in Marlin also sets E). Input `G90/G91/M82/M83/G20/G21/G17/G18/G19` lines never reach the
+//!   output live: they are written as comments (the interpreter has applied them to the positions);
 //!   `M220/M221` likewise (already in the feed and E).
+//! - Nothing is invented: at the start and after a `G28` the position is the homing pose of
+//!   [`ConvertOptions::home`]; without one, a coordinate the input has not set yet is refused
+//!   ([`ConvertError::UnknownPosition`]).
 //! - Every converted motion line is `G1` (so every line's `F` has the same meaning); the one exception is the
 //!   first move after the start or a `G28`, whose start point is unknown: it is written as a single `G0`
 //!   without `F` (a positioning move; its path is not defined by the input either). Until a move names X
@@ -18,6 +22,7 @@
 
 use std::io::Write;
 
+use gcode::CommandWord;
 use gcode::command::{Arc as ArcMove, Command, Move, Span, Spanned};
 use kinematics::{MotorUnit, ReachError, SegmentError};
 
@@ -47,6 +52,17 @@ pub struct ConvertStats {
     pub flips: u64,
     /// Moves with an unknown start written as a single `G0`.
     pub positioning_moves: u64,
+}
+
+/// One input line as the converter needs it.
+#[derive(Debug, Clone, Copy)]
+pub struct InputLine<'a> {
+    /// The line's text, without its line end.
+    pub text: &'a str,
+    /// Its command word, if it has one.
+    pub command: Option<CommandWord>,
+    /// `G91` was in force for this line (its axis values are relative).
+    pub relative_axes: bool,
 }
 
 /// What the converter has written so far, in output units.
@@ -85,6 +101,8 @@ pub struct Converter<W: Write> {
     budget: Budget,
     started: bool,
     stats: ConvertStats,
+    /// Which of the input's X Y Z are known (set by the input, or by the homing pose).
+    known: [bool; 3],
 }
 
 impl<W: Write> Converter<W> {
@@ -113,6 +131,7 @@ impl<W: Write> Converter<W> {
                 "tolerance is below the output's rounding: raise decimals".into(),
             ));
         }
+        let home_known = options.home.is_some();
         Ok(Converter {
             map,
             options,
@@ -129,6 +148,7 @@ impl<W: Write> Converter<W> {
             budget,
             started: false,
             stats: ConvertStats::default(),
+            known: [home_known; 3],
         })
     }
 
@@ -136,10 +156,22 @@ impl<W: Write> Converter<W> {
         self.stats
     }
 
-    /// Converts one input line: `raw` is its text (without the newline), `commands` what the interpreter
-    /// made of it (empty for blank and comment-only lines).
-    pub fn line(&mut self, raw: &str, commands: &[Spanned<Command>]) -> Result<(), ConvertError> {
+    pub fn options(&self) -> &ConvertOptions {
+        &self.options
+    }
+
+    /// Converts one input line: `input` is its text and command word, `commands` what the interpreter made
+    /// of it (empty for blank and comment-only lines, and for the mode lines the interpreter consumes).
+    pub fn line(
+        &mut self,
+        input: InputLine<'_>,
+        commands: &[Spanned<Command>],
+    ) -> Result<(), ConvertError> {
         self.start()?;
+        let raw = input.text;
+        if commands.is_empty() && input.command.is_some_and(is_consumed_mode) {
+            return self.write_note(raw, "already applied: the output uses mm and absolute axes");
+        }
         if commands.iter().all(|c| passes_through(&c.value)) {
             return self.write_raw(raw);
         }
@@ -147,7 +179,7 @@ impl<W: Write> Converter<W> {
             self.write_raw(comment)?;
         }
         for command in commands {
-            self.command(raw, command)?;
+            self.command(raw, command, input.relative_axes)?;
         }
         Ok(())
     }
@@ -181,15 +213,30 @@ impl<W: Write> Converter<W> {
         Ok(())
     }
 
-    fn command(&mut self, raw: &str, command: &Spanned<Command>) -> Result<(), ConvertError> {
+    fn command(
+        &mut self,
+        raw: &str,
+        command: &Spanned<Command>,
+        relative_axes: bool,
+    ) -> Result<(), ConvertError> {
         let span = command.span;
         match &command.value {
             Command::Move(m) => {
                 check_magnitudes(span, &m.target)?;
+                if !relative_axes {
+                    for i in 0..3 {
+                        self.known[i] |= m.named[i];
+                    }
+                }
                 self.straight(span, m)
             }
             Command::Arc(a) => {
                 check_magnitudes(span, &a.target)?;
+                // Arcs are absolute (the interpreter refuses them under G91); an axis the arc leaves out keeps
+                // its value, so only an end that differs from the start was given.
+                for i in 0..3 {
+                    self.known[i] |= a.target[i] != a.start[i];
+                }
                 self.arc(span, a)
             }
             Command::Home { axes } => self.home(raw, *axes),
@@ -213,6 +260,12 @@ impl<W: Write> Converter<W> {
         self.position = None;
         self.at_centre = false;
         self.written.z_known = false;
+        let all = !axes.iter().any(|&a| a);
+        for (known, homed) in self.known.iter_mut().zip(axes) {
+            if all || homed {
+                *known = self.options.home.is_some();
+            }
+        }
         let letters = self.options.letters();
         if letters == ['X', 'Y'] || !(axes[0] || axes[1]) {
             return self.write_raw(raw);
@@ -511,6 +564,7 @@ impl<W: Write> Converter<W> {
 
     /// The first move after the start or a homing: a single `G0` to the target, no `F`.
     fn positioning_move(&mut self, span: Span, target: [f64; 4]) -> Result<(), ConvertError> {
+        self.require_known(span, [true; 3])?;
         let p = xyz(target);
         // The start is unknown, but the target itself must be within the machine's limits.
         match self.map.machine().check_point(p) {
@@ -552,6 +606,9 @@ impl<W: Write> Converter<W> {
     fn write_z_and_e_only(&mut self, span: Span, m: &Move) -> Result<(), ConvertError> {
         let e = to_units(m.target[3], self.options.decimals.extrusion);
         let de = (e - self.written.e) as f64 / scale(self.options.decimals.extrusion);
+        if m.named[2] {
+            self.require_known(span, [false, false, true])?;
+        }
         self.buf.line_room(&mut self.out)?;
         if m.named[2] {
             let z = to_units(m.target[2], self.options.decimals.linear);
@@ -579,6 +636,17 @@ impl<W: Write> Converter<W> {
         self.buf.push_array(b"\n");
         self.written.e = e;
         Ok(())
+    }
+
+    /// Refuses to write a coordinate (of those `needed`) that neither the input nor the homing pose has set.
+    fn require_known(&self, span: Span, needed: [bool; 3]) -> Result<(), ConvertError> {
+        match (0..3).find(|&i| needed[i] && !self.known[i]) {
+            Some(i) => Err(ConvertError::UnknownPosition {
+                span,
+                axis: ['X', 'Y', 'Z'][i],
+            }),
+            None => Ok(()),
+        }
     }
 
     fn axis_units(&self, axes: [f64; 2]) -> [i64; 2] {
@@ -714,6 +782,23 @@ fn passes_through(c: &Command) -> bool {
         Command::Other { name } => !is_mode_command(name),
         _ => true,
     }
+}
+
+/// The mode lines the interpreter consumes without a command (positioning, extrusion, units, arc plane):
+/// never written live, since the output has modes of its own.
+fn is_consumed_mode(word: CommandWord) -> bool {
+    matches!(
+        word,
+        CommandWord::Code {
+            letter: b'G',
+            major: 17..=21 | 90 | 91,
+            minor: None,
+        } | CommandWord::Code {
+            letter: b'M',
+            major: 82 | 83,
+            minor: None,
+        }
+    )
 }
 
 /// Positioning-mode and unit commands the conversion consumes (the interpreter has applied them).

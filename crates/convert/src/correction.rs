@@ -4,6 +4,11 @@
 //! The motor model is the kinematics crate's [`Polar`] with these offsets (its documentation derives
 //! `r = −dx + √(|p|² − dy²)`, bed angle `atan2(p) − atan2(dy, dx + r)`, Klipper's motor sign); points with
 //! `|p| < |dy|` never pass under the nozzle and are errors with the line that asks for them.
+//! This corrects the *arm* (its zero and its line miss the axis; the part stays where the slicer put it about
+//! the axis). The thesis' own correction is another model: it writes the polar coordinates of `p − d`, the
+//! part shifted, which corrects a bed whose origin lies at `d` from the axis (`convert --centre-shift`,
+//! [`crate::ConvertOptions::translate`]). The two differ even for `dy = 0`: for `p` at 5 mm, 45°, and
+//! `d = (2, 0)` the shifted part is 3.855 mm from the axis, the offset arm reaches `p` at 3.000 mm.
 //! Two outputs:
 //! - [`CentreCorrection::motor_map`]: motor-space G-code for the real (offset) machine;
 //! - [`CentreCorrection::cartesian_map`]: Cartesian G-code for a polar firmware that assumes the ideal model,

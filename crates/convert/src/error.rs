@@ -24,6 +24,14 @@ pub enum ConvertError {
         y: f64,
         tolerance: f64,
     },
+    #[error(
+        "line {}:{}: {axis} is not known here: the input has not set it since the start or the last G28, and no \
+         homed position was given (the config's `position_endstop` values); set it first (e.g. `G1 {axis}…`) \
+         rather than have it guessed",
+        span.line,
+        span.column
+    )]
+    UnknownPosition { span: Span, axis: char },
     #[error("machine setup: {0}")]
     Setup(String),
     #[error("invalid options: {0}")]

@@ -20,13 +20,13 @@
 //! }).unwrap();
 //! let map = AxisMap::motors(Arc::new(polar), Target::Cylindrical).unwrap();
 //! let options = ConvertOptions::default(); // X = radius, Y = bed angle in degrees, 0.005 mm
-//! let input = b"G0 X-20 Y5\nG1 X20 Y5 E2 F1800\n";
+//! let input = b"G0 X-20 Y5 Z0.2\nG1 X20 Y5 E2 F1800\n";
 //! let mut converter = Converter::new(map.clone(), options.clone(), Vec::new()).unwrap();
 //! convert_gcode(&input[..], "part.gcode", &mut converter).unwrap();
 //! let (output, stats) = converter.finish().unwrap();
 //! assert!(stats.segments > 10); // the line passes 5 mm from the centre
 //! let output = String::from_utf8(output).unwrap();
-//! let report = verify(&map, &options, &read_commands(&input[..], "part.gcode").unwrap(), &output).unwrap();
+//! let report = verify(&map, &options, &read_commands(&input[..], "part.gcode").unwrap(), output.as_bytes()).unwrap();
 //! assert!(report.max_deviation <= 0.005);
 //! ```
 
@@ -45,36 +45,66 @@ use std::io::{BufRead, Write};
 use std::sync::Arc;
 
 pub use axes::AxisMap;
-pub use converter::{ConvertStats, Converter};
+pub use converter::{ConvertStats, Converter, InputLine};
 pub use correction::CentreCorrection;
 pub use error::ConvertError;
-pub use options::{AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Segmentation, Target};
+pub use options::{
+    AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Firmware, ModeState, Segmentation,
+    Target,
+};
 pub use verify::{SegmentDeviation, VerifyError, VerifyReport, verify, verify_segments};
 
 use gcode::{Command, Commands, GcodeError, Interpreter, Reader, Spanned};
 
-/// Converts the G-code text `input` (named `source` in errors) line by line into `converter`.
+/// Converts the G-code text `input` (named `source` in errors) line by line into `converter`; returns the
+/// reader's warnings (ignored parameters, lossy comments…), at most [`gcode::Warnings::MAX_KEPT`], and their
+/// total.
 pub fn convert_gcode<R: BufRead, W: Write>(
     input: R,
     source: &str,
     converter: &mut Converter<W>,
-) -> Result<(), ConvertError> {
+) -> Result<(Vec<gcode::Warning>, u64), ConvertError> {
     let mut reader = Reader::new(input, source);
     let source: Arc<str> = Arc::clone(reader.source());
-    let mut interpreter = Interpreter::default();
+    let home = converter.options().home;
+    // The machine starts at its homing pose; without one the converter refuses what it would have to guess.
+    let mut interpreter = Interpreter::new(gcode::InterpreterOptions {
+        initial_position: home.map_or([0.0; 4], |h| [h[0], h[1], h[2], 0.0]),
+        ..gcode::InterpreterOptions::default()
+    });
     let mut commands: Vec<Spanned<Command>> = Vec::new();
     while let Some(line) = reader.next_line() {
         let line = line?;
         interpreter.interpret_line(&line, &source)?;
         commands.clear();
         while let Some(c) = interpreter.pop_command() {
+            if let (Command::Home { axes }, Some(home)) = (&c.value, home) {
+                // G28 leaves the homed axes at the homing pose.
+                let all = !axes.iter().any(|&a| a);
+                let mut position = interpreter.last_position();
+                for i in 0..3 {
+                    if all || axes[i] {
+                        position[i] = home[i];
+                    }
+                }
+                interpreter.set_position(position);
+            }
             commands.push(c);
         }
-        converter.line(line.text(), &commands)?;
+        let input = InputLine {
+            text: line.text(),
+            command: line.command(),
+            relative_axes: !interpreter.absolute_coordinates(),
+        };
+        converter.line(input, &commands)?;
     }
     // `finish` only releases slicer metadata, which writes nothing.
     interpreter.finish();
-    Ok(())
+    let total = reader.warnings().total() + interpreter.warnings().total();
+    let mut warnings = reader.warnings_mut().take();
+    warnings.extend(interpreter.take_warnings());
+    warnings.sort_by_key(|w| (w.span.line, w.span.column));
+    Ok((warnings, total))
 }
 
 /// All commands of a G-code text, for [`verify`].

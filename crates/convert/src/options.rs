@@ -48,6 +48,73 @@ pub enum Extrusion {
     Absolute,
 }
 
+/// The firmware that reads the output: how its mode lines act (verification replays the output this way).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Firmware {
+    /// Marlin: `G90`/`G91` set every axis, E included; `M82`/`M83` set E alone.
+    #[default]
+    Marlin,
+    /// RepRapFirmware: `G90`/`G91` set X Y Z only; `M82`/`M83` set E.
+    Rrf,
+    /// Klipper: E is relative while `G91` or `M83` is in force (`G90` gives E back its `M82`/`M83` mode).
+    Klipper,
+}
+
+impl Firmware {
+    pub fn name(self) -> &'static str {
+        match self {
+            Firmware::Marlin => "Marlin",
+            Firmware::Rrf => "RepRapFirmware",
+            Firmware::Klipper => "Klipper",
+        }
+    }
+}
+
+/// The positioning and extrusion modes of a firmware reading G-code line by line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModeState {
+    firmware: Firmware,
+    /// `G91` in force (X Y Z relative).
+    relative_axes: bool,
+    /// The E flag: Marlin's and RRF's E mode; Klipper's `M83` (E is then also relative under `G91`).
+    relative_e_flag: bool,
+}
+
+impl ModeState {
+    /// Power-on state: everything absolute.
+    pub fn new(firmware: Firmware) -> Self {
+        ModeState {
+            firmware,
+            relative_axes: false,
+            relative_e_flag: false,
+        }
+    }
+
+    /// Applies `G90` (`relative` false) or `G91`.
+    pub fn axes_mode(&mut self, relative: bool) {
+        self.relative_axes = relative;
+        if self.firmware == Firmware::Marlin {
+            self.relative_e_flag = relative;
+        }
+    }
+
+    /// Applies `M82` (`relative` false) or `M83`.
+    pub fn extrusion_mode(&mut self, relative: bool) {
+        self.relative_e_flag = relative;
+    }
+
+    pub fn relative_axes(&self) -> bool {
+        self.relative_axes
+    }
+
+    pub fn relative_e(&self) -> bool {
+        match self.firmware {
+            Firmware::Klipper => self.relative_axes || self.relative_e_flag,
+            Firmware::Marlin | Firmware::Rrf => self.relative_e_flag,
+        }
+    }
+}
+
 /// How a move is cut into segments that are straight in motor space.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Segmentation {
@@ -125,6 +192,12 @@ pub struct ConvertOptions {
     /// `translate` (mm), before conversion. Z and E are not changed.
     pub scale_xy: f64,
     pub translate: [f64; 2],
+    /// Where the machine is (Cartesian X Y Z, mm) at the start of the input and after a `G28`: the config's
+    /// homing pose. `None`: unknown; then a move that needs a coordinate the input has not set is refused
+    /// (nothing is invented).
+    pub home: Option<[f64; 3]>,
+    /// The firmware that reads the output (verification replays its mode lines this way).
+    pub firmware: Firmware,
 }
 
 impl Default for ConvertOptions {
@@ -140,6 +213,8 @@ impl Default for ConvertOptions {
             flip_speed: std::f64::consts::TAU,
             scale_xy: 1.0,
             translate: [0.0, 0.0],
+            home: None,
+            firmware: Firmware::default(),
         }
     }
 }
@@ -190,6 +265,36 @@ impl ConvertOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_firmware_reads_mode_lines_its_own_way() {
+        // E relative after each sequence of mode lines: (Marlin, RRF, Klipper).
+        let cases: [(&[&str], [bool; 3]); 6] = [
+            (&[], [false, false, false]),
+            (&["M83"], [true, true, true]),
+            (&["G91"], [true, false, true]),
+            (&["M83", "G90"], [false, true, true]),
+            (&["M82", "G91", "G90"], [false, false, false]),
+            (&["G91", "M82"], [false, false, true]),
+        ];
+        for (lines, expected) in cases {
+            for (firmware, relative) in [Firmware::Marlin, Firmware::Rrf, Firmware::Klipper]
+                .into_iter()
+                .zip(expected)
+            {
+                let mut modes = ModeState::new(firmware);
+                for line in lines {
+                    match *line {
+                        "G90" => modes.axes_mode(false),
+                        "G91" => modes.axes_mode(true),
+                        "M82" => modes.extrusion_mode(false),
+                        _ => modes.extrusion_mode(true),
+                    }
+                }
+                assert_eq!(modes.relative_e(), relative, "{firmware:?} after {lines:?}");
+            }
+        }
+    }
 
     #[test]
     fn default_rounding_is_far_below_the_default_tolerance() {

@@ -1,7 +1,9 @@
-//! Verification of converted G-code: replays the written motor-space lines through forward kinematics,
-//! interpolating linearly in motor space as firmware does, and measures the nozzle's distance from the
-//! intended Cartesian path densely along every written segment; also totals extrusion and print time at the
-//! requested speeds on both sides.
+//! Verification of converted G-code: re-reads the written text through the G-code reader, applying every
+//! mode line the way the chosen firmware ([`ConvertOptions::firmware`]) does, replays the motor-space lines
+//! through forward kinematics, interpolating linearly in motor space as firmware does, and measures the
+//! nozzle's distance from the intended Cartesian path densely along every written segment; also totals
+//! extrusion and print time at the requested speeds on both sides. It knows nothing of how the converter
+//! meant the lines: a stray `G91` or `M82` in the output shows as a wrong path or a wrong extrusion.
 //!
 //! Matching: the converter writes every segment's end points on the intended path (to rounding), and the
 //! last segment of a move at the move's end. Each written segment is compared with the first input move,
@@ -10,12 +12,14 @@
 //! path is counted in [`VerifyReport::unmatched`] and measured against the nearest upcoming move.
 
 use std::collections::VecDeque;
+use std::io::BufRead;
 
 use gcode::command::Command;
+use gcode::{CommandWord, Line, Reader};
 use kinematics::MotorUnit;
 
 use crate::axes::AxisMap;
-use crate::options::{AngleUnit, ConvertOptions, Extrusion};
+use crate::options::{AngleUnit, ConvertOptions, Firmware, ModeState};
 use crate::path::Path;
 
 /// Samples per written segment (evenly spaced, end points included).
@@ -49,10 +53,11 @@ pub struct VerifyReport {
 
 /// An output line verification could not read.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("output line {line}: cannot read `{text}`")]
+#[error("output line {line}: cannot replay `{text}`: {why}")]
 pub struct VerifyError {
-    pub line: usize,
+    pub line: u64,
     pub text: String,
+    pub why: String,
 }
 
 /// One input move with a known start.
@@ -70,12 +75,13 @@ pub struct SegmentDeviation {
     pub ends_move: bool,
 }
 
-/// Replays `output` (written by a converter with `map` and `options`) against the `input` commands.
+/// Replays `output` (G-code text written for `map`'s axes with `options`' letters and units, read as
+/// `options.firmware` reads it) against the `input` commands.
 pub fn verify<'a>(
     map: &AxisMap,
     options: &ConvertOptions,
     input: impl IntoIterator<Item = &'a Command>,
-    output: &str,
+    output: impl BufRead,
 ) -> Result<VerifyReport, VerifyError> {
     verify_segments(map, options, input, output, |_| {})
 }
@@ -85,7 +91,7 @@ pub fn verify_segments<'a>(
     map: &AxisMap,
     options: &ConvertOptions,
     input: impl IntoIterator<Item = &'a Command>,
-    output: &str,
+    output: impl BufRead,
     mut each: impl FnMut(SegmentDeviation),
 ) -> Result<VerifyReport, VerifyError> {
     let mut report = VerifyReport::default();
@@ -96,12 +102,19 @@ pub fn verify_segments<'a>(
         on_path: 3.0 * options.rounding_budget(map.units()) + 1e-9,
         move_finished: false,
     };
-    let mut reader = OutputReader::new(map, options);
+    let mut reader = OutputReader::new(map, options, options.firmware);
+    let mut lines = Reader::new(output, "<output>");
     let mut squares = 0.0;
-    for (index, line) in output.lines().enumerate() {
-        let segment = reader.read(line).map_err(|()| VerifyError {
-            line: index + 1,
-            text: line.to_string(),
+    while let Some(line) = lines.next_line() {
+        let line = line.map_err(|e| VerifyError {
+            line: e.span.line,
+            text: e.line_text.clone(),
+            why: e.kind.to_string(),
+        })?;
+        let segment = reader.read(&line).map_err(|why| VerifyError {
+            line: line.number(),
+            text: line.text().to_string(),
+            why,
         })?;
         let Some(segment) = segment.filter(|s| !s.positioning) else {
             continue;
@@ -328,114 +341,171 @@ struct WrittenSegment {
     positioning: bool,
 }
 
-/// Reads the converter's output lines.
+/// Reads written G-code as the chosen firmware does: every mode line (`G90/G91`, `M82/M83`, `G20/G21`,
+/// `G92`, `G93/G94`, `M220/M221`) acts as it does there, whoever wrote it.
 struct OutputReader {
-    letters: [char; 2],
+    letters: [u8; 2],
     /// Written unit → internal unit, per planar axis.
     to_internal: [f64; 2],
-    relative_e: bool,
-    axes: [f64; 2],
-    z: f64,
-    e: f64,
+    modes: ModeState,
+    /// Machine position in written units: the two planar axes, Z, E.
+    machine: [f64; 4],
+    /// `G92` offsets (machine − logical), written units.
+    offset: [f64; 4],
+    /// Where the machine is is unknown (after `G28`) until a move names both planar axes and Z.
+    known: [bool; 3],
+    /// `G20`: values are inches.
+    unit: f64,
+    feed: Option<f64>,
+    speed_factor: f64,
+    extrude_factor: f64,
     extrusion: f64,
     inverse_time: bool,
 }
 
+/// Why an output line cannot be replayed.
+type LineFault = String;
+
 impl OutputReader {
-    fn new(map: &AxisMap, options: &ConvertOptions) -> Self {
+    fn new(map: &AxisMap, options: &ConvertOptions, firmware: Firmware) -> Self {
         let angle = match options.angle_unit {
             AngleUnit::Degrees => std::f64::consts::PI / 180.0,
             AngleUnit::Radians => 1.0,
         };
+        let letters = options.letters().map(|c| c.to_ascii_uppercase() as u8);
         OutputReader {
-            letters: options.letters(),
+            letters,
             to_internal: map
                 .units()
                 .map(|u| if u == MotorUnit::Rad { angle } else { 1.0 }),
-            relative_e: options.extrusion == Extrusion::Relative,
-            axes: [0.0; 2],
-            z: 0.0,
-            e: 0.0,
+            modes: ModeState::new(firmware),
+            machine: [0.0; 4],
+            offset: [0.0; 4],
+            known: [true; 3],
+            unit: 1.0,
+            feed: None,
+            speed_factor: 1.0,
+            extrude_factor: 1.0,
             extrusion: 0.0,
             inverse_time: false,
         }
     }
 
+    /// Index (0, 1 planar, 2 Z, 3 E) of a word letter, if it is an axis.
+    fn axis(&self, letter: u8) -> Option<usize> {
+        match letter {
+            l if l == self.letters[0] => Some(0),
+            l if l == self.letters[1] => Some(1),
+            b'Z' => Some(2),
+            b'E' => Some(3),
+            _ => None,
+        }
+    }
+
+    fn planar(&self) -> [f64; 2] {
+        [0, 1].map(|i| self.machine[i] * self.to_internal[i])
+    }
+
     /// Applies one line; returns the motion segment it writes, if any.
-    fn read(&mut self, line: &str) -> Result<Option<WrittenSegment>, ()> {
-        let code = line.split(';').next().unwrap_or("").trim();
-        let mut words = code.split_ascii_whitespace();
-        let Some(head) = words.next() else {
+    fn read(&mut self, line: &Line<'_>) -> Result<Option<WrittenSegment>, LineFault> {
+        let Some(CommandWord::Code {
+            letter,
+            major,
+            minor: None,
+        }) = line.command()
+        else {
             return Ok(None);
         };
-        match head {
-            "G93" => self.inverse_time = true,
-            "G94" => self.inverse_time = false,
-            "G92" => {
-                for w in words {
-                    if let Some(v) = w.strip_prefix('E') {
-                        self.e = v.parse().map_err(drop)?;
+        let value = |l: u8| line.word(l).and_then(|w| w.value);
+        match (letter, major) {
+            (b'G', 0 | 1) => return self.motion(major == 0, line).map(Some),
+            (b'G', 2 | 3) => {
+                return Err("an arc: the firmware would interpolate it in motor space".into());
+            }
+            (b'G', 20) => self.unit = 25.4,
+            (b'G', 21) => self.unit = 1.0,
+            (b'G', 28) => {
+                let named: Vec<usize> = line
+                    .words()
+                    .iter()
+                    .filter_map(|w| self.axis(w.letter))
+                    .collect();
+                for i in 0..3 {
+                    if named.is_empty() || named.contains(&i) {
+                        self.known[i] = false;
                     }
                 }
             }
-            "G0" | "G1" => return self.motion(head == "G0", words).map(Some),
+            (b'G', 90) => self.modes.axes_mode(false),
+            (b'G', 91) => self.modes.axes_mode(true),
+            (b'G', 92) => {
+                for w in line.words() {
+                    let Some(i) = self.axis(w.letter) else {
+                        continue;
+                    };
+                    let v = w.value.unwrap_or(0.0) * self.unit;
+                    self.offset[i] = self.machine[i] - v;
+                }
+            }
+            (b'G', 93) => self.inverse_time = true,
+            (b'G', 94) => self.inverse_time = false,
+            (b'M', 82) => self.modes.extrusion_mode(false),
+            (b'M', 83) => self.modes.extrusion_mode(true),
+            (b'M', 220) => self.speed_factor = value(b'S').unwrap_or(100.0) / 100.0,
+            (b'M', 221) => self.extrude_factor = value(b'S').unwrap_or(100.0) / 100.0,
             _ => {}
         }
         Ok(None)
     }
 
-    fn motion<'l>(
-        &mut self,
-        positioning: bool,
-        words: impl Iterator<Item = &'l str>,
-    ) -> Result<WrittenSegment, ()> {
-        let (from, z0) = (self.axes, self.z);
-        let mut written_delta = [0.0f64; 3];
-        let mut de = 0.0;
-        let mut feed = None;
-        for w in words {
-            let mut chars = w.chars();
-            let letter = chars.next().ok_or(())?;
-            let value: f64 = chars.as_str().parse().map_err(drop)?;
-            if let Some(i) = self.letters.iter().position(|&l| l == letter) {
-                let internal = value * self.to_internal[i];
-                written_delta[i] = (internal - self.axes[i]) / self.to_internal[i];
-                self.axes[i] = internal;
+    fn motion(&mut self, positioning: bool, line: &Line<'_>) -> Result<WrittenSegment, LineFault> {
+        let (from, z0, e0) = (self.planar(), self.machine[2], self.machine[3]);
+        let before = self.machine;
+        // A move that names an axis whose place is unknown (after G28) starts nowhere: positioning.
+        let mut from_unknown = false;
+        for w in line.words() {
+            let Some(value) = w.value else {
+                return Err(format!("`{}` without a value", w.letter as char));
+            };
+            if w.letter == b'F' {
+                self.feed = Some(value * self.unit);
+                continue;
+            }
+            let Some(i) = self.axis(w.letter) else {
+                return Err(format!("an unexpected `{}` word", w.letter as char));
+            };
+            let value = value * self.unit;
+            let relative = if i == 3 {
+                self.modes.relative_e()
             } else {
-                match letter {
-                    'Z' => {
-                        written_delta[2] = value - self.z;
-                        self.z = value;
-                    }
-                    'E' => {
-                        de = if self.relative_e {
-                            value
-                        } else {
-                            value - self.e
-                        };
-                        self.e = if self.relative_e {
-                            self.e + value
-                        } else {
-                            value
-                        };
-                    }
-                    'F' => feed = Some(value),
-                    _ => return Err(()),
-                }
+                self.modes.relative_axes()
+            };
+            self.machine[i] = if relative {
+                self.machine[i] + value
+            } else {
+                value + self.offset[i]
+            };
+            if i < 3 {
+                from_unknown |= !self.known[i];
+                self.known[i] |= !relative;
             }
         }
+        let de = (self.machine[3] - e0) * self.extrude_factor;
         self.extrusion += de;
+        let written_delta = [0, 1, 2].map(|i| self.machine[i] - before[i]);
         let length = written_delta.iter().map(|d| d * d).sum::<f64>().sqrt();
+        let feed = self.feed.map(|f| f * self.speed_factor);
+        let positioning = positioning || from_unknown;
         let time = match feed {
             _ if positioning => 0.0,
             Some(f) if self.inverse_time && f > 0.0 => 60.0 / f,
             Some(f) if f > 0.0 => 60.0 * if length > 0.0 { length } else { de.abs() } / f,
-            _ => return Err(()),
+            _ => return Err("a timed move without a positive F".into()),
         };
         Ok(WrittenSegment {
             from,
-            to: self.axes,
-            z: [z0, self.z],
+            to: self.planar(),
+            z: [z0, self.machine[2]],
             time,
             positioning,
         })

@@ -52,6 +52,10 @@ pub enum ErrorKind {
     ArcMissingCentre,
     #[error("arc radius is zero")]
     ArcZeroRadius,
+    #[error(
+        "R arc that ends where it starts: its centre is undefined (give I/J for a full circle)"
+    )]
+    ArcRClosed,
     #[error("R arc: chord longer than the diameter")]
     ArcRadiusTooSmall,
     #[error("inconsistent arc: radius {start_radius} at start, {end_radius} at end")]

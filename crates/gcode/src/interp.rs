@@ -1074,8 +1074,11 @@ fn centre_offset_from_radius(
     let chord = dx.hypot(dy);
     let half = chord / 2.0;
     let r = radius.abs();
-    if chord == 0.0 || r == 0.0 {
+    if r == 0.0 {
         return Err(ErrorKind::ArcZeroRadius);
+    }
+    if chord == 0.0 {
+        return Err(ErrorKind::ArcRClosed);
     }
     if half > r + ARC_RADIUS_TOLERANCE_MM {
         return Err(ErrorKind::ArcRadiusTooSmall);
@@ -1447,6 +1450,40 @@ mod tests {
                 name: "SET_FAN_SPEED".to_owned()
             }
         );
+    }
+
+    #[test]
+    fn klipper_quoted_values_read_as_klipper_reads_them() {
+        // Klipper splits extended parameters like a shell: '…' and "…" both quote.
+        for text in [
+            "SET_VELOCITY_LIMIT VELOCITY='200' ACCEL=\"3000\"\n",
+            "SET_VELOCITY_LIMIT VELOCITY=200 ACCEL=3000\n",
+        ] {
+            let (commands, _) = run(text);
+            assert_eq!(
+                commands[0],
+                Command::SetVelocityLimit(VelocityLimit {
+                    velocity: Some(200.0),
+                    accel: Some(3000.0),
+                    ..VelocityLimit::default()
+                }),
+                "{text}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_not_part_of_the_first_line() {
+        let (commands, _) = run("\u{feff}G1 X10 F600\nG1 X20\n");
+        assert_eq!(commands.len(), 2);
+        assert!(matches!(commands[0], Command::Move(m) if m.target[0] == 10.0));
+        // Elsewhere it is still an unexpected character.
+        let text = "G1 X1\n\u{feff}G1 X2\n";
+        let errors: Vec<_> = Commands::from_reader(text.as_bytes(), "t")
+            .filter_map(Result::err)
+            .collect();
+        assert_eq!(errors.len(), 1);
+        assert_eq!(errors[0].span.line, 2);
     }
 
     #[test]

@@ -49,7 +49,7 @@ pub struct ExtParam<'a> {
     pub key: &'a str,
     /// Without surrounding quotes.
     pub value: &'a str,
-    /// The value was written in `"…"`.
+    /// The value was written in `"…"` or `'…'`.
     pub quoted: bool,
     pub span: Span,
 }
@@ -636,9 +636,10 @@ impl Lexer<'_, '_> {
         }
         let key = (start, self.pos);
         self.pos += 1;
-        let (value, quoted) = if self.peek() == Some(b'"') {
+        // Quoted values as Klipper reads them (shell-style): "…" or '…'.
+        let (value, quoted) = if let Some(quote @ (b'"' | b'\'')) = self.peek() {
             let open = self.pos;
-            let close = memchr::memchr(b'"', &self.bytes[open + 1..])
+            let close = memchr::memchr(quote, &self.bytes[open + 1..])
                 .map(|i| open + 1 + i)
                 .ok_or_else(|| {
                     LexError::new(ErrorKind::UnterminatedString, open, self.bytes.len())
@@ -813,7 +814,8 @@ mod tests {
 
     #[test]
     fn extended_commands() {
-        let text = "EXCLUDE_OBJECT_DEFINE NAME=a POLYGON=[[1,2],[3,4]] MSG=\"two words\" ; c";
+        let text =
+            "EXCLUDE_OBJECT_DEFINE NAME=a POLYGON=[[1,2],[3,4]] MSG=\"two words\" V='200' ; c";
         let tokens = lex(text);
         let line = Line::new(text, &tokens);
         assert_eq!(line.command(), Some(CommandWord::Extended));
@@ -827,7 +829,8 @@ mod tests {
             vec![
                 ("NAME", "a", false),
                 ("POLYGON", "[[1,2],[3,4]]", false),
-                ("MSG", "two words", true)
+                ("MSG", "two words", true),
+                ("V", "200", true)
             ]
         );
         assert_eq!(line.ext_param("polygon").map(|p| p.span.column), Some(30));

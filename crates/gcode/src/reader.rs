@@ -52,6 +52,8 @@ pub struct Reader<R> {
     pending_io_error: Option<io::Error>,
     warnings: Warnings,
     failed_io: bool,
+    /// Nothing read yet: a UTF-8 byte-order mark there is skipped.
+    at_start: bool,
 }
 
 /// Where the next line is.
@@ -96,6 +98,7 @@ impl<R: BufRead> Reader<R> {
             pending_io_error: None,
             warnings: Warnings::default(),
             failed_io: false,
+            at_start: true,
         }
     }
 
@@ -129,6 +132,9 @@ impl<R: BufRead> Reader<R> {
     pub fn next_line(&mut self) -> Option<Result<Line<'_>, GcodeError>> {
         if self.failed_io {
             return None;
+        }
+        if self.at_start {
+            self.skip_byte_order_mark();
         }
         if let Some(err) = self.pending_io_error.take() {
             return Some(Err(self.io_error(&err)));
@@ -188,6 +194,20 @@ impl<R: BufRead> Reader<R> {
         }
     }
 
+    /// Skips a UTF-8 byte-order mark at the very start of the input (editors on Windows write one; it is not
+    /// part of the first line). An I/O error is left for the next read to report.
+    #[cold]
+    fn skip_byte_order_mark(&mut self) {
+        self.at_start = false;
+        const BOM: &[u8] = b"\xEF\xBB\xBF";
+        if let Ok(available) = self.input.fill_buf()
+            && available.starts_with(BOM)
+        {
+            self.input.consume(BOM.len());
+            self.bytes_consumed += BOM.len() as u64;
+        }
+    }
+
     /// Offers the buffered bytes from the next line's start to `take`, which reads the line itself
     /// (one pass: no separate search for the line end, no UTF-8 check) and gives `Some(len)` when
     /// it took the whole line: `len` bytes, then a `\n` or `\r` inside the offered bytes; the line
@@ -199,7 +219,8 @@ impl<R: BufRead> Reader<R> {
         &mut self,
         take: impl FnOnce(&[u8], u64) -> Option<usize>,
     ) -> Option<()> {
-        if self.failed_io || self.pending_io_error.is_some() {
+        // The first line goes through `next_line`, which skips a byte-order mark.
+        if self.failed_io || self.pending_io_error.is_some() || self.at_start {
             return None;
         }
         self.consume_deferred();

@@ -54,8 +54,13 @@ pub struct Stats {
     pub xy_travel: f64,
     /// Bounding box of the extruding moves (`None` if nothing was extruded).
     pub extrusion_bbox: Option<BoundingBox>,
-    /// Layer changes announced by the slicer.
+    /// Layers: those the slicer announces with layer markers; in a file without markers, the Z levels
+    /// extrusion starts at (a new one after a non-extruding move, or a Z step of more than 0.02 mm).
     pub layers: u64,
+    /// Layer markers seen (`;LAYER_CHANGE`, `;LAYER:n`…).
+    pub layer_markers: u64,
+    /// Layers counted from Z changes while extruding.
+    pub extrusion_z_levels: u64,
     /// Feature types seen (`;TYPE:`…).
     pub features: BTreeSet<String>,
     pub warnings: u64,
@@ -67,7 +72,13 @@ pub struct StatsCollector {
     stats: Stats,
     codes: HashMap<(u8, u32, Option<u32>), u64>,
     position: Position,
+    /// Z of the current extrusion level, and whether the previous move extruded.
+    level_z: Option<f64>,
+    last_extruded: bool,
 }
+
+/// A Z step (mm) between two extruding moves that starts a new level (smaller ones are a spiral's climb).
+const LEVEL_STEP: f64 = 0.02;
 
 impl StatsCollector {
     pub fn new() -> Self {
@@ -99,19 +110,23 @@ impl StatsCollector {
                 let start = self.position;
                 let xy = (m.target[0] - start[0]).hypot(m.target[1] - start[1]);
                 self.travel(&start, &m.target, xy);
-                if self.is_extruding(&start, &m.target, xy) {
+                let extruding = self.is_extruding(&start, &m.target, xy);
+                if extruding {
                     self.include(&start);
                     self.include(&m.target);
                 }
+                self.level(extruding, m.target[2]);
                 self.position = m.target;
             }
             Command::Arc(arc) => {
                 self.stats.arcs += 1;
                 let xy = arc.length_xy();
                 self.travel(&arc.start, &arc.target, xy);
-                if self.is_extruding(&arc.start, &arc.target, xy) {
+                let extruding = self.is_extruding(&arc.start, &arc.target, xy);
+                if extruding {
                     self.include_arc(arc);
                 }
+                self.level(extruding, arc.target[2]);
                 self.position = arc.target;
             }
             Command::SetKinematicPosition { position } => {
@@ -121,7 +136,7 @@ impl StatsCollector {
                     }
                 }
             }
-            Command::Meta(Meta::LayerChange { .. }) => self.stats.layers += 1,
+            Command::Meta(Meta::LayerChange { .. }) => self.stats.layer_markers += 1,
             Command::Meta(Meta::Feature(name)) if !self.stats.features.contains(name) => {
                 self.stats.features.insert(name.clone());
             }
@@ -137,6 +152,26 @@ impl StatsCollector {
         } else {
             self.stats.total_retraction -= de;
         }
+    }
+
+    /// Counts extrusion Z levels (see [`Stats::layers`]).
+    fn level(&mut self, extruding: bool, z: f64) {
+        if extruding {
+            let new = match self.level_z {
+                None => true,
+                Some(level) => {
+                    let step = (z - level).abs();
+                    step > LEVEL_STEP || (!self.last_extruded && step > 1e-6)
+                }
+            };
+            if new {
+                self.stats.extrusion_z_levels += 1;
+            }
+            if new || !self.last_extruded {
+                self.level_z = Some(z);
+            }
+        }
+        self.last_extruded = extruding;
     }
 
     fn is_extruding(&mut self, start: &Position, end: &Position, xy: f64) -> bool {
@@ -192,6 +227,11 @@ impl StatsCollector {
             *self.stats.commands.entry(name).or_default() += count;
         }
         self.stats.warnings = warnings;
+        self.stats.layers = if self.stats.layer_markers > 0 {
+            self.stats.layer_markers
+        } else {
+            self.stats.extrusion_z_levels
+        };
         self.stats
     }
 }

@@ -70,7 +70,7 @@ pub enum ReachError {
         distance: f64,
         min: f64,
     },
-    #[error("{motor} would have to be at {value:.4}, outside its limits [{min:.4}, {max:.4}]")]
+    #[error("{motor} would have to be at {}", beyond_limits(*value, *min, *max, 4))]
     JointLimit {
         motor: String,
         value: f64,
@@ -90,7 +90,7 @@ pub enum ReachError {
     },
     #[error("({x:.3}, {y:.3}) is at the rotation centre, where the bed angle is undefined")]
     AtCentre { x: f64, y: f64 },
-    #[error("axis {axis} at {value:.3} is outside [{min:.3}, {max:.3}]")]
+    #[error("axis {axis} at {}", beyond_limits(*value, *min, *max, 3))]
     AxisLimit {
         axis: char,
         value: f64,
@@ -99,6 +99,18 @@ pub enum ReachError {
     },
     #[error("position is not finite")]
     NotFinite,
+}
+
+/// `value, outside its limits [min, max]` with at least `decimals` decimals, and more where needed so that the
+/// value never reads as equal to the limit it exceeds (`150.0000001`, not `150.0000`).
+fn beyond_limits(value: f64, min: f64, max: f64, decimals: usize) -> String {
+    let limit = if value > max { max } else { min };
+    let mut d = decimals;
+    let reads = |x: f64, d: usize| format!("{x:.d$}").parse::<f64>().unwrap_or(x);
+    while d < 15 && reads(value, d) == reads(limit, d) {
+        d += 1;
+    }
+    format!("{value:.d$}, outside its limits [{min:.d$}, {max:.d$}]")
 }
 
 /// A problem found along a straight segment, with the fraction `t ∈ [0, 1]` of the segment where it occurs.
@@ -169,4 +181,43 @@ pub fn build(params: &MachineParams) -> Result<Box<dyn Kinematics>, ParamError> 
         MachineParams::Polar(p) => Box::new(polar::Polar::new(p.clone())?),
         MachineParams::Scara(p) => Box::new(scara::Scara::new(p.clone())?),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ReachError;
+
+    #[test]
+    fn a_value_beyond_a_limit_never_reads_as_the_limit() {
+        let e = ReachError::JointLimit {
+            motor: "stepper_arm".into(),
+            value: 150.000_000_12,
+            min: 0.0,
+            max: 150.0,
+        };
+        assert_eq!(
+            e.to_string(),
+            "stepper_arm would have to be at 150.0000001, outside its limits [0.0000000, 150.0000000]"
+        );
+        let e = ReachError::AxisLimit {
+            axis: 'Z',
+            value: 300.25,
+            min: 0.0,
+            max: 300.0,
+        };
+        assert_eq!(
+            e.to_string(),
+            "axis Z at 300.250, outside its limits [0.000, 300.000]"
+        );
+        let e = ReachError::AxisLimit {
+            axis: 'Z',
+            value: -0.0004,
+            min: 0.0,
+            max: 300.0,
+        };
+        assert_eq!(
+            e.to_string(),
+            "axis Z at -0.0004, outside its limits [0.0000, 300.0000]"
+        );
+    }
 }

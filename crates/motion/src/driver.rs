@@ -45,6 +45,19 @@ pub struct Warning {
     pub message: String,
 }
 
+/// The end point of a move or arc.
+fn target_of(cmd: &Spanned<Command>) -> Option<[f64; 4]> {
+    match &cmd.value {
+        Command::Move(mv) => Some(mv.target),
+        Command::Arc(arc) => Some(arc.target),
+        _ => None,
+    }
+}
+
+fn xyz_of(p: [f64; 4]) -> [f64; 3] {
+    [p[0], p[1], p[2]]
+}
+
 /// Drives a [`Toolhead`] from G-code commands.
 #[derive(Debug)]
 pub struct Planner<'k, S: MoveSink> {
@@ -90,6 +103,42 @@ impl<'k, S: MoveSink> Planner<'k, S> {
     /// Start from a known pose (the machine was homed before the file begins).
     pub fn start_at(&mut self, xyz: [f64; 3]) {
         self.toolhead.set_position(xyz);
+    }
+
+    /// After `cmd` was refused, go on from where the file meant the machine to be, so that the next commands
+    /// are judged on their own (for checking, not for printing: nothing moves there). A move's or arc's
+    /// target is taken as the new position when the machine can be there (declared, as
+    /// `SET_KINEMATIC_POSITION` does); otherwise X, Y and Z stay where the machine is. The extruder takes the
+    /// target's E either way, so that the next move's extrusion is its own. Returns the machine position.
+    pub fn resync_after_refusal(&mut self, cmd: &Spanned<Command>) -> [f64; 4] {
+        let Some(target) = target_of(cmd) else {
+            return self.toolhead.position();
+        };
+        let xyz = [target[0], target[1], target[2]];
+        if self.toolhead.check_point(xyz).is_ok() && xyz != xyz_of(self.toolhead.position()) {
+            if target[3].is_finite() {
+                self.toolhead.set_extruder_position(target[3]);
+            }
+            self.toolhead.set_position(xyz);
+            return self.toolhead.position();
+        }
+        self.skip(cmd)
+    }
+
+    /// After a move or arc was skipped (`--skip-unreachable`): the machine stays where it is, and the extruder
+    /// is declared at the target's E without pushing filament (as a `G92 E` would), so that the next move
+    /// extrudes its own amount, not the skipped move's as well. Returns the machine position.
+    pub fn skip(&mut self, cmd: &Spanned<Command>) -> [f64; 4] {
+        let position = self.toolhead.position();
+        if let Some(target) = target_of(cmd)
+            && target[3].is_finite()
+            && target[3] != position[3]
+        {
+            self.toolhead.set_extruder_position(target[3]);
+            // Declared to the step generators too: the extruder's steps continue from here, no jump.
+            self.toolhead.set_position(xyz_of(position));
+        }
+        self.toolhead.position()
     }
 
     /// Finish planning: the sink, the final print time, the warnings and the moves slowed hard.

@@ -212,22 +212,26 @@ pub enum Severity {
 /// Everything [`check_gcode`] found, and the print time of what could be planned.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CheckReport {
+    /// The first `max_problems` problems found, in file order.
     pub problems: Vec<Problem>,
     pub end_time: f64,
     pub slow_moves: u64,
+    /// Every error and warning found, kept or not.
+    pub error_count: usize,
+    pub warning_count: usize,
 }
 
 impl CheckReport {
+    /// Errors found (all of them, also beyond `max_problems`).
     pub fn errors(&self) -> usize {
-        self.problems
-            .iter()
-            .filter(|p| p.severity == Severity::Error)
-            .count()
+        self.error_count
     }
 }
 
 /// Plan a stream without generating steps and collect every problem instead of stopping at the first:
-/// syntax errors, unreachable segments (skipped, the machine stays put), commands the planner refused,
+/// syntax errors, unreachable segments, commands the planner refused (after each refusal the check goes on
+/// from the refused move's target when the machine can be there, else from where it is, with the target's E:
+/// [`Planner::resync_after_refusal`]),
 /// ignored commands, and moves that a machine limit slows below a quarter of their requested speed.
 /// At most `max_problems` are kept (all are counted in the error total).
 pub fn check_gcode(
@@ -246,7 +250,12 @@ pub fn check_gcode(
         commands.interpreter_mut().set_position(position);
     }
     let mut problems = Vec::new();
+    let (mut error_count, mut warning_count) = (0, 0);
     let mut push = |problem: Problem| {
+        match problem.severity {
+            Severity::Error => error_count += 1,
+            Severity::Warning => warning_count += 1,
+        }
         if problems.len() < max_problems {
             problems.push(problem);
         }
@@ -269,7 +278,8 @@ pub fn check_gcode(
                         message: e.kind.to_string(),
                         line_text: None,
                     });
-                    let position = planner.toolhead().position();
+                    // Go on from where the file meant to be, so no follow-on errors are invented.
+                    let position = planner.resync_after_refusal(&command);
                     commands.interpreter_mut().set_position(position);
                 }
             },
@@ -279,7 +289,7 @@ pub fn check_gcode(
         push(Problem {
             span: w.span,
             severity: Severity::Warning,
-            message: w.to_string(),
+            message: w.message.clone(),
             line_text: None,
         });
     }
@@ -312,6 +322,8 @@ pub fn check_gcode(
         problems,
         end_time,
         slow_moves: slow.total,
+        error_count,
+        warning_count,
     }
 }
 
@@ -351,8 +363,9 @@ pub fn plan_gcode<S: MoveSink>(
             Ok(None) => {}
             Err(e) if setup.planner.skip_unreachable && e.is_unreachable() => {
                 planner.warn(e.span, e.kind.to_string());
-                // The machine stays where it was; later relative moves continue from there.
-                let position = planner.toolhead().position();
+                // The machine stays where it was (later relative moves continue from there); the skipped
+                // move's filament is not pushed by the next one.
+                let position = planner.skip(&command);
                 commands.interpreter_mut().set_position(position);
             }
             Err(e) => return Err(e.into()),

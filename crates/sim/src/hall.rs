@@ -120,6 +120,9 @@ pub struct HallBedConfig {
     pub magnet: MagnetSpec,
     /// Sensor above the magnets' top faces (mm).
     pub sensor_height: f64,
+    /// Where the sensor really reads relative to the nozzle, along and across the arm (mm): its mounting
+    /// offset plus `height · tan(tilt)`. A scan measures the sensor, so this adds to the `dx`, `dy` it finds.
+    pub sensor_offset: [f64; 2],
     pub sensor: Ky024,
     /// True `dx` (arm zero along the arm, mm) and `dy` (lateral, mm).
     pub arm_zero_offset: f64,
@@ -147,6 +150,7 @@ impl Default for HallBedConfig {
             missing: Vec::new(),
             magnet: MagnetSpec::default(),
             sensor_height: 3.0,
+            sensor_offset: [0.0, 0.0],
             sensor: Ky024::default(),
             arm_zero_offset: 0.0,
             arm_lateral_offset: 0.0,
@@ -267,10 +271,11 @@ impl HallScanner {
     /// Noise-free field at the sensor for the current motor positions (T).
     pub fn true_field(&self) -> f64 {
         let sensor = [
-            self.true_arm() + self.cfg.arm_zero_offset,
-            self.cfg.arm_lateral_offset,
+            self.true_arm() + self.cfg.arm_zero_offset + self.cfg.sensor_offset[0],
+            self.cfg.arm_lateral_offset + self.cfg.sensor_offset[1],
         ];
-        let (s, c) = self.true_bed().sin_cos();
+        // The bed reading θ has the kinematics' sign: bed point p is under machine point Rot(−θ)·p.
+        let (s, c) = (-self.true_bed()).sin_cos();
         self.magnets
             .iter()
             .map(|m| {

@@ -64,7 +64,10 @@ pub struct Replay {
     pub deposited: DeviationStats,
     /// Statistics over every sample, travel included.
     pub all: DeviationStats,
+    /// Per-layer statistics (at most [`crate::metrics::MAX_LAYER_ROWS`] rows; consecutive layers merged beyond).
     pub layers: Vec<LayerStats>,
+    /// Layers found (from Z changes while extruding; a spiral vase gives one per turn).
+    pub layer_count: usize,
     /// Decimated path (intended and actual), in time order.
     pub path: Vec<PathPoint>,
     /// Spacing the kept path ended with (mm).
@@ -471,6 +474,7 @@ impl<'k> Recorder<'k> {
             deposited: self.analysis.deposited,
             all: self.analysis.all,
             layers: self.analysis.layers,
+            layer_count: self.analysis.layer_count,
             path: self.analysis.path,
             decimate: self.analysis.decimate,
             worst_resolution_ratio: self.analysis.worst_resolution_ratio,

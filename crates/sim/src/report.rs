@@ -15,11 +15,21 @@ const MAX_DRAWN_SEGMENTS: usize = 30_000;
 /// Heat-map cells across the larger side of the printed area.
 const HEAT_CELLS: f64 = 120.0;
 
-/// Statistics of one layer.
+/// Rows of a report's per-layer table at most: beyond, consecutive layers are merged into one row.
+pub const MAX_REPORTED_LAYERS: usize = 200;
+/// Rows of the circle and four-sided-loop tables at most (the worst are kept).
+pub const MAX_REPORTED_FEATURES: usize = 200;
+
+/// Statistics of one layer, or of a run of consecutive layers when the print has more than
+/// [`MAX_REPORTED_LAYERS`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LayerReport {
+    /// First layer of the row (0-based) and how many layers it holds.
     pub index: usize,
+    pub layers: usize,
+    /// Intended Z at the row's start, and the highest in it.
     pub z: f64,
+    pub z_max: f64,
     pub stats: StatsSummary,
 }
 
@@ -28,8 +38,14 @@ pub struct LayerReport {
 pub struct RunReport {
     pub deposited: StatsSummary,
     pub all_motion: StatsSummary,
+    /// Layers found in the print (one per turn of a spiral vase).
+    pub layer_count: usize,
     pub layers: Vec<LayerReport>,
+    /// Circles and four-sided loops found (the tables hold at most [`MAX_REPORTED_FEATURES`] each, the
+    /// worst first kept in print order).
+    pub circle_count: usize,
     pub circles: Vec<CircleFeature>,
+    pub square_count: usize,
     pub squares: Vec<QuadFeature>,
     pub steps: Vec<(String, u64)>,
     pub print_time: f64,
@@ -44,24 +60,41 @@ impl RunReport {
         RunReport {
             deposited: r.deposited.summary(),
             all_motion: r.all.summary(),
-            layers: r
-                .layers
+            layer_count: r.layer_count,
+            layers: crate::metrics::summarise_layers(&r.layers, MAX_REPORTED_LAYERS)
                 .iter()
-                .enumerate()
-                .map(|(index, l)| LayerReport {
-                    index,
+                .map(|l| LayerReport {
+                    index: l.first,
+                    layers: l.count,
                     z: l.z,
+                    z_max: l.z_max,
                     stats: l.stats.summary(),
                 })
                 .collect(),
-            circles: sim.circles.clone(),
-            squares: sim.quads.clone(),
+            circle_count: sim.circles.len(),
+            circles: worst_kept(&sim.circles, |c| {
+                (c.actual_diameter - c.intended_diameter).abs() + c.roundness + c.centre_shift()
+            }),
+            square_count: sim.quads.len(),
+            squares: worst_kept(&sim.quads, |q| q.worst_side_error()),
             steps: r.steps.clone(),
             print_time: r.end_time,
             worst_resolution_ratio: r.worst_resolution_ratio,
             warnings: r.warnings.len(),
         }
     }
+}
+
+/// At most [`MAX_REPORTED_FEATURES`] of `all`: the worst by `badness`, in their original order.
+fn worst_kept<T: Clone>(all: &[T], badness: impl Fn(&T) -> f64) -> Vec<T> {
+    if all.len() <= MAX_REPORTED_FEATURES {
+        return all.to_vec();
+    }
+    let mut order: Vec<usize> = (0..all.len()).collect();
+    order.sort_by(|&a, &b| badness(&all[b]).total_cmp(&badness(&all[a])));
+    order.truncate(MAX_REPORTED_FEATURES);
+    order.sort_unstable();
+    order.into_iter().map(|i| all[i].clone()).collect()
 }
 
 /// Everything written to `report.json`.
@@ -112,7 +145,23 @@ impl Report {
 fn run_text(s: &mut String, title: &str, r: &RunReport) {
     run_stats_text(s, title, r);
     circles_text(s, &r.circles);
+    if r.circle_count > r.circles.len() {
+        let _ = writeln!(
+            s,
+            "               ({} circles in all; the {} worst are listed)",
+            r.circle_count,
+            r.circles.len()
+        );
+    }
     quads_text(s, &r.squares);
+    if r.square_count > r.squares.len() {
+        let _ = writeln!(
+            s,
+            "                  ({} four-sided loops in all; the {} worst are listed)",
+            r.square_count,
+            r.squares.len()
+        );
+    }
 }
 
 fn run_stats_text(s: &mut String, title: &str, r: &RunReport) {
@@ -143,19 +192,32 @@ fn run_stats_text(s: &mut String, title: &str, r: &RunReport) {
         d.samples,
         steps_text(&r.steps)
     );
+    let merged = r.layers.len() < r.layer_count;
     let _ = writeln!(
         s,
-        "per layer:  layer      z   max dev   rms dev   max model"
+        "per layer ({} layers{}):  layer      z   max dev   rms dev   max model",
+        r.layer_count,
+        if merged {
+            format!(", {} rows of consecutive layers", r.layers.len())
+        } else {
+            String::new()
+        }
     );
     for l in &r.layers {
+        let index = if l.layers > 1 {
+            format!("{}–{}", l.index, l.index + l.layers - 1)
+        } else {
+            l.index.to_string()
+        };
+        let z = if l.z_max - l.z > 0.005 {
+            format!("{:.2}–{:.2}", l.z, l.z_max)
+        } else {
+            format!("{:.2}", l.z)
+        };
         let _ = writeln!(
             s,
-            "           {:>5} {:>6.2} {:>9.4} {:>9.4} {:>11.4}",
-            l.index,
-            l.z,
-            l.stats.max_path_deviation,
-            l.stats.rms_path_deviation,
-            l.stats.max_model_error
+            "           {index:>5} {z:>6} {:>9.4} {:>9.4} {:>11.4}",
+            l.stats.max_path_deviation, l.stats.rms_path_deviation, l.stats.max_model_error
         );
     }
 }

@@ -43,10 +43,20 @@ impl StepFileWriter {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let temp = NamedTempFile::new_in(&dir).map_err(|source| StepFileError::Io {
-            path: path.clone(),
-            source,
-        })?;
+        let mut builder = tempfile::Builder::new();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            // Given at creation, so the umask applies as to any new file (tempfile's default is 0600).
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
+        }
+        let temp: NamedTempFile =
+            builder
+                .tempfile_in(&dir)
+                .map_err(|source| StepFileError::Io {
+                    path: path.clone(),
+                    source,
+                })?;
         let buffered = BufWriter::with_capacity(1 << 16, temp);
         let out = if path.extension().is_some_and(|e| e == "gz") {
             Output::Gzip(GzEncoder::new(buffered, Compression::default()))

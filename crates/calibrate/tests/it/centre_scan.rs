@@ -1,7 +1,9 @@
 //! Centre scan on simulated machines (sim::hall): accuracy over many random machines, the thesis' averaging
 //! for comparison, a missed magnet, the result file and the plot data.
 
-use calibrate::scan::{CentreResult, PeakMethod, ScanParams, scan_centre};
+use calibrate::scan::{CentreResult, PeakMethod, ScanHardware, ScanParams, scan_centre};
+use kinematics::polar::Polar;
+use kinematics::{Kinematics, PolarParams};
 use sim::hall::{HallBedConfig, HallScanner};
 use std::time::Instant;
 
@@ -130,6 +132,13 @@ fn a_missing_magnet_does_not_break_the_fit() {
         let e = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
         assert_eq!(r.detected, 15, "seed {seed}");
         assert_eq!(r.pairs_used, 15);
+        assert!(
+            r.flags
+                .iter()
+                .any(|f| f.contains("was not found (missing?)")),
+            "{:?}",
+            r.flags
+        );
         assert!(e < 0.03, "seed {seed}: error {e}");
         let ring = r.ring.as_ref().expect("ring fit");
         assert!(
@@ -183,32 +192,130 @@ fn result_file_round_trips_and_plot_data_matches() {
     }
 }
 
-#[test]
-fn exact_detections_from_the_geometry_give_the_offsets_exactly() {
-    use calibrate::scan::{centre_from_detections, parse_detections};
+/// Where the machine's motors put the sensor (the nozzle) over bed point `m`, on the near side (`inverse`) and
+/// on the far side of the centre (arm reading below `−dx`), found from the kinematics' `forward` alone: the
+/// arm reading where the nozzle is `|m|` from the centre (bisection), then the bed reading that turns that
+/// point onto `m`. Nothing of the scan code is used.
+fn motor_readings(kin: &dyn Kinematics, m: [f64; 2]) -> ([f64; 2], [f64; 2]) {
+    let mut near = [0.0; 3];
+    kin.inverse([m[0], m[1], 0.0], &mut near)
+        .expect("magnet reachable");
+    let nozzle = |r: f64| kin.forward(&[0.0, r, 0.0]).expect("forward");
+    let rho = m[0].hypot(m[1]);
+    let (mut lo, mut hi) = (-2.0 * rho - 10.0, near[1]);
+    // |nozzle(r)| falls from lo up to the arm's closest approach; that is below −dx < near[1].
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        let n = nozzle(mid);
+        let closer = n[0].hypot(n[1]) < rho;
+        // On the far branch the distance grows as r falls.
+        if closer || n[0] > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let r_far = 0.5 * (lo + hi);
+    let n = nozzle(r_far);
+    let theta_far = m[1].atan2(m[0]) - n[1].atan2(n[0]);
+    let check = kin.forward(&[theta_far, r_far, 0.0]).expect("forward");
+    assert!(
+        (check[0] - m[0]).hypot(check[1] - m[1]) < 1e-9,
+        "far side {check:?} vs {m:?}"
+    );
+    let check = kin.forward(&near).expect("forward");
+    assert!((check[0] - m[0]).hypot(check[1] - m[1]) < 1e-9);
+    ([near[1], near[0]], [r_far, theta_far])
+}
+
+/// Magnets anywhere (irregular radii and angles) on a machine with both assembly offsets; the bed angles are
+/// the ones the machine's own kinematics (Klipper's sign, what `convert` writes) give.
+fn kinematic_scan(dx: f64, dy: f64, bed_sign: f64) -> String {
     use std::fmt::Write as _;
-    // Magnets anywhere (irregular radii and angles): the near/far geometry is exact for each of them.
-    let (dx, dy) = (-1.7, 0.9);
+    let polar = Polar::new(PolarParams {
+        arm_zero_offset: dx,
+        arm_lateral_offset: dy,
+        ..PolarParams::klipper_example()
+    })
+    .expect("polar machine");
     let mut csv = String::from("# synthetic scan\nmagnet,side,arm_mm,bed_deg\n");
     for k in 0..12 {
         let rho = 95.0 + 0.7 * (k as f64 * 1.3).sin();
         let alpha = k as f64 * 0.5 + 0.05 * (k as f64).cos();
-        let h = (rho * rho - dy * dy).sqrt();
-        // Rot(θ)·m = (r + dx, dy) on each side.
-        let (near_t, far_t) = (f64::atan2(dy, h) - alpha, f64::atan2(dy, -h) - alpha);
-        writeln!(csv, "{k},near,{},{}", h - dx, near_t.to_degrees()).expect("write");
+        let ([r_near, t_near], [r_far, t_far]) =
+            motor_readings(&polar, [rho * alpha.cos(), rho * alpha.sin()]);
+        let deg = |t: f64| bed_sign * t.to_degrees();
+        writeln!(csv, "{k},near,{r_near},{}", deg(t_near)).expect("write");
         if k != 4 {
-            writeln!(csv, "{k},far,{},{}", -h - dx, far_t.to_degrees() + 360.0).expect("write");
+            writeln!(csv, "{k},far,{r_far},{}", deg(t_far) + 360.0).expect("write");
         }
     }
+    csv
+}
+
+#[test]
+fn a_scan_in_the_machines_bed_sign_gives_the_offsets_exactly() {
+    use calibrate::scan::{centre_from_detections, parse_detections};
+    let (dx, dy) = (-1.7, 0.9);
+    let csv = kinematic_scan(dx, dy, 1.0);
     let slots = parse_detections(&csv, "synthetic.csv").expect("parse");
     let r = centre_from_detections(&ScanParams::default(), slots.near, slots.far).expect("fit");
-    assert!((r.arm_zero_offset - dx).abs() < 1e-9 && (r.arm_lateral_offset - dy).abs() < 1e-9);
+    assert!(
+        (r.arm_zero_offset - dx).abs() < 1e-9 && (r.arm_lateral_offset - dy).abs() < 1e-9,
+        "{} {}",
+        r.arm_zero_offset,
+        r.arm_lateral_offset
+    );
     assert_eq!((r.pairs_used, r.detected), (11, 12));
     // Magnet map: each magnet back at its bed-frame position (ρ, α).
     let m5 = r.magnets[5].position.expect("position");
     let (rho, alpha) = (95.0 + 0.7 * (5.0f64 * 1.3).sin(), 2.5 + 0.05 * 5.0f64.cos());
     assert!((m5[0] - rho * alpha.cos()).abs() < 1e-9 && (m5[1] - rho * alpha.sin()).abs() < 1e-9);
+    // The sign matters: a log of the physical bed rotation (the opposite sign) gives dy negated.
+    let slots = parse_detections(&kinematic_scan(dx, dy, -1.0), "negated.csv").expect("parse");
+    let r = centre_from_detections(&ScanParams::default(), slots.near, slots.far).expect("fit");
+    assert!((r.arm_zero_offset - dx).abs() < 1e-9 && (r.arm_lateral_offset + dy).abs() < 1e-9);
+}
+
+#[test]
+fn the_simulated_bed_turns_as_the_kinematics_say() {
+    // The sensor placed over a magnet by the kinematics' inverse reads that magnet's peak field.
+    let cfg = HallBedConfig {
+        arm_zero_offset: 1.3,
+        arm_lateral_offset: -0.8,
+        placement_sigma: 0.0,
+        arm_steps_per_mm: 1e6,
+        bed_steps_per_rev: 1e9,
+        ..HallBedConfig::default()
+    };
+    let polar = Polar::new(PolarParams {
+        arm_zero_offset: cfg.arm_zero_offset,
+        arm_lateral_offset: cfg.arm_lateral_offset,
+        ..PolarParams::klipper_example()
+    })
+    .expect("polar machine");
+    let peak = cfg.magnet.bz(0.0, cfg.sensor_height);
+    let mut machine = HallScanner::new(cfg).expect("valid sim");
+    for m in machine.magnets().to_vec() {
+        let (near, far) = motor_readings(&polar, m);
+        for [r, theta] in [near, far] {
+            let mut field_at = |dr: f64, dt: f64| {
+                machine.move_arm(r + dr).expect("arm");
+                machine.turn_bed(theta + dt).expect("bed");
+                machine.true_field()
+            };
+            let field = field_at(0.0, 0.0);
+            // The neighbours' far field takes off a few tenths of a percent.
+            assert!(
+                (field - peak).abs() < 1e-2 * peak,
+                "{m:?}: {field} vs {peak}"
+            );
+            // A maximum: 0.02 mm along the arm or along the bed's arc either way reads less.
+            for (dr, dt) in [(0.02, 0.0), (-0.02, 0.0), (0.0, 0.0002), (0.0, -0.0002)] {
+                assert!(field_at(dr, dt) < field, "{m:?}: not the peak ({dr}, {dt})");
+            }
+        }
+    }
 }
 
 #[test]
@@ -243,4 +350,103 @@ fn a_small_inner_ring_serves_arms_that_barely_pass_the_centre() {
         percentile(errors, 0.5)
     );
     assert!(p95 <= 0.02, "p95 {p95}");
+}
+
+#[test]
+fn a_wrong_or_moved_magnet_is_flagged_and_not_fitted() {
+    use calibrate::scan::{Detection, centre_from_detections};
+    let (dx, dy) = (0.6, -1.1);
+    let polar = Polar::new(PolarParams {
+        arm_zero_offset: dx,
+        arm_lateral_offset: dy,
+        ..PolarParams::klipper_example()
+    })
+    .expect("polar machine");
+    let (mut near, mut far) = (Vec::new(), Vec::new());
+    for k in 0..8 {
+        let alpha = k as f64 * std::f64::consts::TAU / 8.0;
+        let m = [100.0 * alpha.cos(), 100.0 * alpha.sin()];
+        // Magnet 6 is knocked 0.3 mm between the two sides of the scan.
+        let m_far = if k == 6 { [m[0] + 0.3, m[1]] } else { m };
+        // Magnet 3 is a weaker one.
+        let peak = if k == 3 { 0.030 } else { 0.053 };
+        let ([r, t], _) = motor_readings(&polar, m);
+        let (_, [rf, tf]) = motor_readings(&polar, m_far);
+        near.push(Some(Detection { r, theta: t, peak }));
+        far.push(Some(Detection {
+            r: rf,
+            theta: tf,
+            peak,
+        }));
+    }
+    let r = centre_from_detections(&ScanParams::default(), near, far).expect("fit");
+    assert_eq!(r.pairs_used, 7);
+    assert!((r.arm_zero_offset - dx).abs() < 1e-9 && (r.arm_lateral_offset - dy).abs() < 1e-9);
+    assert!(
+        r.flags
+            .iter()
+            .any(|f| f.starts_with("magnet 6's pair") && f.contains("not used")),
+        "{:?}",
+        r.flags
+    );
+    assert!(
+        r.flags
+            .iter()
+            .any(|f| f.starts_with("magnet 3 peaks at 30.0 mT")),
+        "{:?}",
+        r.flags
+    );
+}
+
+#[test]
+fn a_sensor_beside_the_nozzle_shifts_the_offsets_and_the_uncertainty_covers_it() {
+    // A sensor 0.08 mm along and 0.06 mm across the arm from the nozzle (mounting, or a 1° tilt at 3–5 mm):
+    // the scan measures the sensor, so the offsets come out shifted by exactly that.
+    let offset = [0.08, -0.06];
+    let mut shifts = Vec::new();
+    for seed in 0..10u64 {
+        let cfg = HallBedConfig {
+            sensor_offset: offset,
+            ..HallBedConfig::default()
+        }
+        .random_offsets(2.0, 300 + seed);
+        let (dx, dy) = (cfg.arm_zero_offset, cfg.arm_lateral_offset);
+        let mut machine = HallScanner::new(cfg).expect("valid sim");
+        let params = ScanParams {
+            sensor_alignment: 0.1,
+            ..ScanParams::default()
+        };
+        let r = scan_centre(&mut machine, &params).expect("scan succeeds");
+        let shift = [r.arm_zero_offset - dx, r.arm_lateral_offset - dy];
+        assert!(
+            (shift[0] - offset[0]).hypot(shift[1] - offset[1]) < 0.02,
+            "seed {seed}: shift {shift:?}"
+        );
+        // The scan's own scatter is far smaller than the bias; the reported σ includes the alignment.
+        assert!(
+            r.sigma_scan[0] < 0.01 && r.sigma_scan[1] < 0.01,
+            "{:?}",
+            r.sigma_scan
+        );
+        assert!(r.sigma_arm_zero_offset >= 0.1 && r.sigma_arm_lateral_offset >= 0.1);
+        assert!(shift[0].abs() <= 3.0 * r.sigma_arm_zero_offset);
+        assert!(shift[1].abs() <= 3.0 * r.sigma_arm_lateral_offset);
+        shifts.push(shift);
+    }
+    println!("sensor offset {offset:?}: scan shifted by {shifts:?}");
+}
+
+#[test]
+fn a_written_scan_file_gives_the_same_result() {
+    use calibrate::scan::{
+        DETECTIONS_PREAMBLE, centre_from_detections, parse_detections, write_detections,
+    };
+    let (_, r) = scan_error(11, PeakMethod::Interpolated);
+    let text = write_detections(&r);
+    assert!(text.starts_with(DETECTIONS_PREAMBLE));
+    assert!(text.contains("in the\n# machine's sign"), "{text}");
+    let slots = parse_detections(&text, "scan.csv").expect("parse");
+    let again = centre_from_detections(&ScanParams::default(), slots.near, slots.far).expect("fit");
+    assert!((again.arm_zero_offset - r.arm_zero_offset).abs() < 1e-12);
+    assert!((again.arm_lateral_offset - r.arm_lateral_offset).abs() < 1e-12);
 }

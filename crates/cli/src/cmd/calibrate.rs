@@ -1,10 +1,10 @@
 //! `jointspace calibrate`: the polar bed's rotation centre from a Hall-sensor magnet scan (simulated or logged),
 //! and SCARA arm geometry from measured nozzle positions.
 
-use crate::output::write_atomically;
 use calibrate::scan::{CentreResult, ScanParams};
 use calibrate::scara::{self, Measurement, ScaraGeometry};
 use plot::{Figure, Layer, Rgb};
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -24,8 +24,18 @@ pub struct CentreArgs {
     #[arg(long, conflicts_with = "scan")]
     pub simulate: bool,
     /// Magnet detections logged by a real machine: CSV `magnet,side,arm_mm,bed_deg` (side `near` or `far`).
+    /// `bed_deg` is the bed motor's reading in the machine's sign, the one Klipper's polar kinematics and
+    /// `jointspace convert` use: an ideal machine has bed point (r·cos θ, r·sin θ) under the nozzle (the bed
+    /// itself has turned by −θ). A log of the physical rotation must be negated first.
     #[arg(long, value_name = "CSV")]
     pub scan: Option<PathBuf>,
+    /// Also write the detections as such a CSV (its header comment states the sign); `-` for standard output.
+    #[arg(long, value_name = "CSV")]
+    pub save_scan: Option<PathBuf>,
+    /// How well the sensor's axis is known to sit on the nozzle (mm, 1σ): a sensor beside the nozzle or
+    /// tilted shifts dx and dy by that much and no scan can see it; it is added to the reported uncertainty.
+    #[arg(long, default_value_t = 0.05, value_name = "MM")]
+    pub sensor_alignment: f64,
     /// Magnets on the bed rim (simulation).
     #[arg(long, default_value_t = 16)]
     pub magnets: usize,
@@ -43,6 +53,9 @@ pub struct CentreArgs {
     /// Picture of the magnet map with the fitted ring and residuals (PNG; an SVG is written beside it).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    /// Print the result as JSON (what the result file holds) instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -56,6 +69,9 @@ pub struct ScaraArgs {
     /// Result file (JSON).
     #[arg(short = 'o', long = "out", default_value = "scara.json")]
     pub out: PathBuf,
+    /// Print the result as JSON (what the result file holds) instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -83,6 +99,7 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
 pub fn scan_params(args: &CentreArgs) -> ScanParams {
     ScanParams {
         magnet_count: args.magnets,
+        sensor_alignment: args.sensor_alignment,
         ..ScanParams::default()
     }
 }
@@ -90,6 +107,7 @@ pub fn scan_params(args: &CentreArgs) -> ScanParams {
 fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     let params = scan_params(&args);
     let (result, truth) = if let Some(path) = &args.scan {
+        crate::output::register_input(path);
         let text = std::fs::read_to_string(path)
             .map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
         let slots = calibrate::scan::parse_detections(&text, &path.display().to_string())
@@ -102,14 +120,42 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     } else {
         return Err(miette::miette!("give --simulate or --scan FILE"));
     };
-    result
-        .write_json(&args.out)
-        .map_err(|e| miette::miette!("{e}"))?;
-    crate::out!("{}", render_centre(&result, truth));
-    crate::outln!("  result written to {}", args.out.display());
+    // No output may replace an input; all are checked before any is written.
+    let mut outputs = vec![args.out.clone()];
+    outputs.extend(args.save_scan.clone());
+    if let Some(png) = &args.plot {
+        outputs.push(png.clone());
+        outputs.push(png.with_extension("svg"));
+    }
+    for path in &outputs {
+        crate::output::refuse_input(path).map_err(super::plain)?;
+    }
+    if let Some(path) = &args.save_scan {
+        let text = calibrate::scan::write_detections(&result);
+        crate::output::write_output(path, |w| Ok(w.write_all(text.as_bytes())?))
+            .map_err(super::plain)?;
+    }
+    crate::output::write_output(&args.out, |w| {
+        serde_json::to_writer_pretty(&mut *w, &result)?;
+        Ok(w.write_all(b"\n")?)
+    })
+    .map_err(super::plain)?;
+    if args.json {
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&result).map_err(|e| miette::miette!("{e}"))?
+        );
+    } else {
+        crate::out!("{}", render_centre(&result, truth));
+        if !crate::output::is_stdio(&args.out) {
+            crate::outln!("  result written to {}", args.out.display());
+        }
+    }
     if let Some(png) = &args.plot {
         draw_magnet_map(&result, png)?;
-        crate::outln!("  magnet map drawn in {}", png.display());
+        if !args.json {
+            crate::outln!("  magnet map drawn in {}", png.display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -155,6 +201,14 @@ pub fn render_centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
         "  {} of {} magnets seen, {} pairs used; scan takes {:.0} s on the machine ({} sensor readings)\n",
         r.detected, r.magnet_count, r.pairs_used, r.scan_time, r.sensor_reads
     );
+    out += &format!(
+        "  uncertainty: scan ±{:.4} / ±{:.4} mm, sensor alignment to the nozzle ±{:.4} mm (not observable by \
+         a scan; --sensor-alignment)\n",
+        r.sigma_scan[0], r.sigma_scan[1], r.sensor_alignment
+    );
+    for flag in &r.flags {
+        out += &format!("  warning: {flag}\n");
+    }
     if let Some([dx, dy]) = truth {
         let error = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
         out += &format!(
@@ -217,6 +271,7 @@ pub fn draw_magnet_map(r: &CentreResult, png: &Path) -> miette::Result<()> {
 
 fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
     let start = start_geometry(args.config.as_deref())?;
+    crate::output::register_input(&args.measurements);
     let text = std::fs::read_to_string(&args.measurements)
         .map_err(|e| miette::miette!("cannot read {}: {e}", args.measurements.display()))?;
     let data: Vec<Measurement> =
@@ -224,7 +279,9 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
             .map_err(|e| miette::miette!("{e}"))?;
     let fit = scara::identify(&data, &start).map_err(|e| miette::miette!("{e}"))?;
     let g = &fit.geometry;
-    crate::outln!(
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
         "identified from {} measurements (residual RMS {:.4} mm):",
         data.len(),
         fit.rms
@@ -248,14 +305,16 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         fit.sigma[6],
     ];
     for ((name, v), s) in scara::PARAM_NAMES.iter().zip(values).zip(sigmas) {
-        crate::outln!("  {name:<16} {v:>12.5} ± {s:.5}");
+        let _ = writeln!(text, "  {name:<16} {v:>12.5} ± {s:.5}");
     }
-    crate::outln!(
+    let _ = writeln!(
+        text,
         "  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)",
         1.0 / g.elbow_coupling
     );
     let id = &fit.identifiability;
-    crate::outln!(
+    let _ = writeln!(
+        text,
         "  condition number of the poses: {:.1}",
         id.condition_number
     );
@@ -264,7 +323,11 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
             .iter()
             .map(|(n, w)| format!("{w:+.2}·{n}"))
             .collect();
-        crate::outln!("  not identifiable from these poses: {}", terms.join(" "));
+        let _ = writeln!(
+            text,
+            "  not identifiable from these poses: {}",
+            terms.join(" ")
+        );
     }
     let json = serde_json::json!({
         "link1_length": g.link1_length, "link2_length": g.link2_length,
@@ -273,9 +336,19 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         "elbow_coupling": g.elbow_coupling, "sigma": fit.sigma.to_vec(), "rms_mm": fit.rms,
         "condition_number": id.condition_number,
     });
-    write_atomically(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
+    crate::output::write_output(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
         .map_err(super::plain)?;
-    crate::outln!("  result written to {}", args.out.display());
+    if args.json {
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&json).unwrap_or_default()
+        );
+    } else {
+        if !crate::output::is_stdio(&args.out) {
+            let _ = writeln!(text, "  result written to {}", args.out.display());
+        }
+        crate::out!("{text}");
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -297,7 +370,8 @@ fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
         .collect();
     let poses = scara::suggest_poses(&g, &[], &reachable, args.poses);
     let text = scara::calibration_pattern_gcode(&g, &poses, &scara::PatternOptions::default());
-    write_atomically(&args.out, |w| Ok(w.write_all(text.as_bytes())?)).map_err(super::plain)?;
+    crate::output::write_output(&args.out, |w| Ok(w.write_all(text.as_bytes())?))
+        .map_err(super::plain)?;
     let id = scara::analyse_poses(&g, &poses);
     crate::outln!(
         "{} crosses written to {} (condition number of the poses {:.1}); print it, measure each cross centre and \

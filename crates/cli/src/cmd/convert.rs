@@ -32,6 +32,26 @@ pub enum Fixed {
     Rrf,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FirmwareArg {
+    /// Marlin: G90/G91 also switch E; M82/M83 switch E alone.
+    Marlin,
+    /// RepRapFirmware: G90/G91 switch X Y Z only.
+    Rrf,
+    /// Klipper: G91 makes E relative too; G90 gives E back its M82/M83 mode.
+    Klipper,
+}
+
+impl From<FirmwareArg> for convert::Firmware {
+    fn from(f: FirmwareArg) -> Self {
+        match f {
+            FirmwareArg::Marlin => convert::Firmware::Marlin,
+            FirmwareArg::Rrf => convert::Firmware::Rrf,
+            FirmwareArg::Klipper => convert::Firmware::Klipper,
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Printer configuration (Klipper's printer.cfg format).
@@ -39,7 +59,7 @@ pub struct Args {
     pub config: PathBuf,
     /// G-code file (`-` for standard input).
     pub file: PathBuf,
-    /// Output G-code file.
+    /// Output G-code file (`-` for standard output). It never replaces the input.
     #[arg(short = 'o', long = "out")]
     pub out: PathBuf,
     /// What the output's axes are.
@@ -52,9 +72,17 @@ pub struct Args {
     /// Segment like a firmware does instead (for comparison).
     #[arg(long, value_enum)]
     pub fixed: Option<Fixed>,
-    /// Polar centre correction `dx,dy` (mm): the arm's zero along the arm and the arm's sideways offset.
+    /// Polar centre correction of the arm (mm): its zero lies `dx` along the arm from the bed's rotation axis,
+    /// and its line passes `dy` beside the axis (`arm_zero_offset`, `arm_lateral_offset`). The part stays
+    /// where the slicer put it relative to the axis; the motors are computed for the offset arm.
     #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
     pub centre_offset: Option<String>,
+    /// The centring thesis' correction (mm): the part is shifted, every point `p` written as the polar
+    /// coordinates of `p − (dx, dy)`. It corrects a bed whose origin (what the slicer's coordinates refer to)
+    /// lies at `(dx, dy)` from the rotation axis in the bed's frame; the arm is taken as ideal. A different
+    /// model from --centre-offset: the two agree only for d = (0, 0).
+    #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+    pub centre_shift: Option<String>,
     /// Take the centre correction from a `jointspace calibrate centre` result file.
     #[arg(long, value_name = "FILE", conflicts_with = "centre_offset")]
     pub calibration: Option<PathBuf>,
@@ -70,27 +98,183 @@ pub struct Args {
     /// Absolute extrusion (`M82`) instead of relative.
     #[arg(long)]
     pub absolute_e: bool,
-    /// Replay the output through the forward kinematics and report the deviation, extrusion and time.
+    /// Re-read the written file as --firmware reads it (its mode lines included), replay it through the
+    /// forward kinematics and report the deviation, extrusion and time against the input.
     #[arg(long)]
     pub verify: bool,
+    /// The firmware that will run the output: how --verify reads its mode lines.
+    #[arg(long, value_enum, default_value = "marlin")]
+    pub firmware: FirmwareArg,
+    /// Print the counts (and the verification) as JSON; a failure as `{"error": …}`.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<ExitCode> {
-    let (machine, _) = super::run::load_machine(&args.config)?;
-    let options = options(&args)?;
+    let json = args.json;
+    let file = args.file.display().to_string();
+    let result = convert_file(args);
+    if json && let Err(e) = &result {
+        super::print_json_error(&file, e.place, &e.message);
+    }
+    result.map_err(|e| e.report)
+}
+
+/// A failure of `convert`: the diagnostic, and for `--json` its place and message.
+struct Failure {
+    report: miette::Report,
+    place: Option<(u64, u32)>,
+    message: String,
+}
+
+impl From<miette::Report> for Failure {
+    fn from(report: miette::Report) -> Self {
+        Failure {
+            message: report.to_string(),
+            place: None,
+            report,
+        }
+    }
+}
+
+fn convert_file(args: Args) -> Result<ExitCode, Failure> {
+    let (machine, setup) = super::run::load_machine(&args.config)?;
+    let mut options = options(&args)?;
+    // The machine starts where homing leaves it; without a homing pose nothing unknown is guessed.
+    options.home = setup.home_position;
     let map = axis_map(&args, &machine.params)?;
+    if args.verify && output::is_stdio(&args.file) {
+        return Err(
+            miette::miette!("--verify re-reads the input: give it as a file, not `-`").into(),
+        );
+    }
+    // Written to standard output and verified: every byte also goes to a scratch copy, which is re-read.
+    let copy = if args.verify && output::is_stdio(&args.out) {
+        Some(
+            tempfile::NamedTempFile::new()
+                .map_err(|e| miette::miette!("cannot create a scratch copy to verify: {e}"))?,
+        )
+    } else {
+        None
+    };
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let mut stats = None;
-    output::write_atomically(&args.out, |out| {
+    let mut warnings = (Vec::new(), 0);
+    output::write_output(&args.out, |out| {
+        let mut tee;
+        let out: &mut dyn std::io::Write = match &copy {
+            Some(file) => {
+                tee = Tee(out, std::io::BufWriter::new(file.reopen()?));
+                &mut tee
+            }
+            None => out,
+        };
         let mut converter = Converter::new(map.clone(), options.clone(), out)?;
-        convert::convert_gcode(reader, &name, &mut converter)?;
+        warnings = convert::convert_gcode(reader, &name, &mut converter)?;
         let (_, s) = converter.finish()?;
         stats = Some(s);
         Ok(())
     })
     .map_err(|e| convert_error(&args, e))?;
     bar.finish_and_clear();
-    if let Some(s) = stats {
+    for w in warnings.0.iter().take(20) {
+        eprintln!(
+            "{name}:{}:{}: warning: {}",
+            w.span.line, w.span.column, w.message
+        );
+    }
+    if warnings.1 > 20 {
+        eprintln!("{name}: … and {} more warnings", warnings.1 - 20);
+    }
+    let mut verification = None;
+    if args.verify {
+        let input = std::fs::File::open(&args.file)
+            .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
+        let commands = convert::read_commands(std::io::BufReader::new(input), &name)
+            .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
+        let written = match &copy {
+            Some(file) => file.reopen(),
+            None => std::fs::File::open(&args.out),
+        }
+        .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
+        let r = convert::verify(&map, &options, &commands, std::io::BufReader::new(written))
+            .map_err(|e| miette::miette!("{}: {e}", args.out.display()))?;
+        verification = Some(r);
+    }
+    let problem = verification
+        .as_ref()
+        .and_then(|r| verify_problem(r, &options));
+    if args.json {
+        let s = stats.unwrap_or_default();
+        let value = serde_json::json!({
+            "input": name,
+            "output": args.out.display().to_string(),
+            "moves": s.moves,
+            "segments": s.segments,
+            "centre_turns": s.flips,
+            "positioning_moves": s.positioning_moves,
+            "warnings": warnings.1,
+            "firmware": options.firmware.name(),
+            "verification": verification.as_ref().map(verify_json),
+            "verification_failure": problem,
+        });
+        let text = serde_json::to_string_pretty(&value).unwrap_or_default();
+        // With `-o -` standard output is the G-code: the report goes to standard error.
+        if output::is_stdio(&args.out) {
+            eprintln!("{text}");
+        } else {
+            crate::outln!("{text}");
+        }
+    } else {
+        print_text(&args, &name, stats, verification.as_ref(), &options);
+    }
+    if let Some(problem) = problem {
+        eprintln!("{}: verification failed: {problem}", args.out.display());
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes everything to both.
+struct Tee<'a, B: std::io::Write>(&'a mut dyn std::io::Write, B);
+
+impl<B: std::io::Write> std::io::Write for Tee<'_, B> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.write_all(buf)?;
+        self.1.write_all(buf)?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()?;
+        self.1.flush()
+    }
+}
+
+/// The verification figures as JSON.
+fn verify_json(r: &convert::VerifyReport) -> serde_json::Value {
+    serde_json::json!({
+        "max_deviation_mm": r.max_deviation,
+        "worst_point": r.worst_point,
+        "rms_deviation_mm": r.rms_deviation,
+        "segments": r.segments,
+        "unmatched_segments": r.unmatched,
+        "filament_in_mm": r.extrusion_in,
+        "filament_out_mm": r.extrusion_out,
+        "time_in_s": r.time_in,
+        "time_out_s": r.time_out,
+        "centre_turn_time_s": r.flip_time,
+    })
+}
+
+fn print_text(
+    args: &Args,
+    name: &str,
+    stats: Option<convert::ConvertStats>,
+    verification: Option<&convert::VerifyReport>,
+    options: &ConvertOptions,
+) {
+    if let Some(s) = stats.filter(|_| !output::is_stdio(&args.out)) {
         crate::outln!(
             "{} → {}: {} moves as {} segments ({} centre turns, {} positioning moves)",
             name,
@@ -101,18 +285,63 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
             s.positioning_moves
         );
     }
-    if args.verify {
-        let input = std::fs::File::open(&args.file)
-            .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
-        let commands = convert::read_commands(std::io::BufReader::new(input), &name)
-            .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
-        let written = std::fs::read_to_string(&args.out)
-            .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
-        let r = convert::verify(&map, &options, &commands, &written)
-            .map_err(|e| miette::miette!("{e}"))?;
-        crate::outln!("verification: {}", render_verify(&r));
+    if let Some(r) = verification {
+        let text = format!(
+            "verification ({} reading {}): {}",
+            options.firmware.name(),
+            if output::is_stdio(&args.out) {
+                "what went to standard output".to_string()
+            } else {
+                args.out.display().to_string()
+            },
+            render_verify(r)
+        );
+        // With `-o -` standard output is the G-code: the report goes to standard error.
+        if output::is_stdio(&args.out) {
+            eprintln!("{text}");
+        } else {
+            crate::outln!("{text}");
+        }
     }
-    Ok(ExitCode::SUCCESS)
+}
+
+/// What makes a verification fail: the path off by more than the tolerance, segments on no input path,
+/// extrusion different from the input's, or time off by more than 1 %.
+pub fn verify_problem(r: &convert::VerifyReport, options: &ConvertOptions) -> Option<String> {
+    let tolerance = match options.segmentation {
+        Segmentation::Adaptive { tolerance } => Some(tolerance),
+        Segmentation::Fixed { .. } => None,
+    };
+    if let Some(t) = tolerance.filter(|&t| r.max_deviation > t * 1.01) {
+        return Some(format!(
+            "the path deviates by {:.4} mm, more than the tolerance {t} mm",
+            r.max_deviation
+        ));
+    }
+    if r.unmatched > 0 {
+        return Some(format!(
+            "{} written segments follow no input move",
+            r.unmatched
+        ));
+    }
+    let e_error = (r.extrusion_out - r.extrusion_in).abs() / r.extrusion_in.abs().max(1.0);
+    if e_error.is_nan() || e_error > 1e-6 {
+        return Some(format!(
+            "extrusion {:.5} mm differs from the input's {:.5} mm",
+            r.extrusion_out, r.extrusion_in
+        ));
+    }
+    // Turns in place at the polar centre have no Cartesian counterpart: not compared.
+    let t_error = (r.time_out - r.flip_time - r.time_in).abs() / r.time_in.max(1.0);
+    if t_error.is_nan() || t_error > 0.01 {
+        return Some(format!(
+            "the written moves take {:.1} s (besides {:.1} s turning at the centre) against the input's {:.1} s",
+            r.time_out - r.flip_time,
+            r.flip_time,
+            r.time_in
+        ));
+    }
+    None
 }
 
 /// The verification figures in one line.
@@ -168,8 +397,13 @@ fn options(args: &Args) -> miette::Result<ConvertOptions> {
         } else {
             Extrusion::Relative
         },
+        firmware: args.firmware.into(),
         ..ConvertOptions::default()
     };
+    if let Some(text) = &args.centre_shift {
+        let [dx, dy] = pair_of_numbers("--centre-shift", text)?;
+        options.translate = [-dx, -dy];
+    }
     if let Some(letters) = &args.letters {
         let chars: Vec<char> = letters.chars().collect();
         match chars[..] {
@@ -223,25 +457,32 @@ fn axis_map(args: &Args, params: &MachineParams) -> miette::Result<AxisMap> {
     }
 }
 
+/// `dx,dy`: two finite numbers (mm).
+fn pair_of_numbers(flag: &str, text: &str) -> miette::Result<[f64; 2]> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let numbers: Vec<f64> = parts
+        .iter()
+        .filter_map(|p| p.parse::<f64>().ok())
+        .filter(|v| v.is_finite())
+        .collect();
+    match numbers[..] {
+        [dx, dy] if parts.len() == 2 => Ok([dx, dy]),
+        _ => Err(miette::miette!(
+            "{flag} takes two numbers `dx,dy` in mm, got `{text}`"
+        )),
+    }
+}
+
 fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
     if let Some(text) = &args.centre_offset {
-        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-        let numbers: Vec<f64> = parts
-            .iter()
-            .filter_map(|p| p.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .collect();
-        if parts.len() != 2 || numbers.len() != 2 {
-            return Err(miette::miette!(
-                "--centre-offset takes two numbers `dx,dy` in mm, got `{text}`"
-            ));
-        }
+        let [dx, dy] = pair_of_numbers("--centre-offset", text)?;
         return Ok(Some(CentreCorrection {
-            arm_zero_offset: numbers[0],
-            arm_lateral_offset: numbers[1],
+            arm_zero_offset: dx,
+            arm_lateral_offset: dy,
         }));
     }
     if let Some(path) = &args.calibration {
+        crate::output::register_input(path);
         let result = calibrate::scan::CentreResult::read_json(path)
             .map_err(|e| miette::miette!("{}: {e}", path.display()))?;
         return Ok(Some(CentreCorrection {
@@ -253,14 +494,40 @@ fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
 }
 
 /// A conversion error: on a G-code line when it has one.
-fn convert_error(args: &Args, e: anyhow::Error) -> miette::Report {
+fn convert_error(args: &Args, e: anyhow::Error) -> Failure {
+    use convert::ConvertError as E;
+    let (place, message) = match e.downcast_ref::<E>() {
+        Some(E::Gcode(g)) => (Some((g.span.line, g.span.column)), g.kind.to_string()),
+        Some(
+            other @ (E::Unreachable { span, .. }
+            | E::Unsupported { span, .. }
+            | E::NoConvergence { span, .. }
+            | E::UnknownPosition { span, .. }),
+        ) => {
+            let text = other.to_string();
+            let message = text
+                .split_once(": ")
+                .map_or(text.as_str(), |(_, rest)| rest);
+            (Some((span.line, span.column)), message.to_string())
+        }
+        _ => (None, format!("{e:#}")),
+    };
+    Failure {
+        report: convert_report(args, e),
+        place,
+        message,
+    }
+}
+
+fn convert_report(args: &Args, e: anyhow::Error) -> miette::Report {
     use convert::ConvertError as E;
     match e.downcast::<E>() {
         Ok(E::Gcode(e)) => miette::Report::new(diag::gcode_error(&e)),
         Ok(
             other @ (E::Unreachable { span, .. }
             | E::Unsupported { span, .. }
-            | E::NoConvergence { span, .. }),
+            | E::NoConvergence { span, .. }
+            | E::UnknownPosition { span, .. }),
         ) => {
             // The error's text starts with its own `line l:c:`; the diagnostic names file, line and column.
             let text = other.to_string();

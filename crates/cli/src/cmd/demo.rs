@@ -84,6 +84,7 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     write_atomically(&print_path, |w| Ok(w.write_all(gcode.as_bytes())?)).map_err(super::plain)?;
 
     let (machine, setup) = run::load_machine(&config_path)?;
+    let home = setup.home_position;
     let mut section = format!("== {} printer ({})\n", example.name, config_path.display());
     let options = run::RunOptions {
         clock_hz: 16e6,
@@ -105,7 +106,7 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     let figures = workspace::map_and_draw(&machine.params, 2.0, &dir, "workspace")?;
     section += &workspace::render(&figures);
     if let Some(target) = example.convert_to {
-        section += &demo_conversion(&machine, &gcode, &print_path, &dir, target)?;
+        section += &demo_conversion(&machine, home, &gcode, &print_path, &dir, target)?;
     }
     let _ = writeln!(section);
     Ok(section)
@@ -114,6 +115,7 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
 /// Convert the test print for firmware without the machine's kinematics, and verify the result.
 fn demo_conversion(
     machine: &config::MachineConfig,
+    home: Option<[f64; 3]>,
     gcode: &str,
     print_path: &Path,
     dir: &Path,
@@ -125,6 +127,7 @@ fn demo_conversion(
     let map = convert::AxisMap::motors(kin, target).map_err(|e| miette::miette!("{e}"))?;
     let options = convert::ConvertOptions {
         target,
+        home,
         ..Default::default()
     };
     let name = print_path.display().to_string();
@@ -138,8 +141,11 @@ fn demo_conversion(
     write_atomically(&out_path, |w| Ok(w.write_all(written.as_bytes())?)).map_err(super::plain)?;
     let commands =
         convert::read_commands(gcode.as_bytes(), &name).map_err(|e| miette::miette!("{e}"))?;
-    let report =
-        convert::verify(&map, &options, &commands, &written).map_err(|e| miette::miette!("{e}"))?;
+    // Verified from the file as written, as the firmware reads it.
+    let file = std::fs::File::open(&out_path)
+        .map_err(|e| miette::miette!("cannot read {}: {e}", out_path.display()))?;
+    let report = convert::verify(&map, &options, &commands, std::io::BufReader::new(file))
+        .map_err(|e| miette::miette!("{e}"))?;
     Ok(format!(
         "conversion for firmware without {} kinematics ({}): {} moves → {} segments\n  {}\n",
         machine.kinematics.name(),
@@ -155,12 +161,15 @@ fn demo_calibration(out: &Path) -> miette::Result<String> {
     let args = calibrate::CentreArgs {
         simulate: true,
         scan: None,
+        save_scan: None,
+        sensor_alignment: 0.05,
         magnets: 16,
         offset: Some("0.8,-0.45".into()),
         noise: 0.15,
         seed: 7,
         out: out.join("calibration/centre.json"),
         plot: Some(out.join("calibration/magnet-map.png")),
+        json: false,
     };
     std::fs::create_dir_all(out.join("calibration")).map_err(|e| miette::miette!("{e}"))?;
     let (result, truth) = calibrate::simulate_scan(&args, &calibrate::scan_params(&args))?;

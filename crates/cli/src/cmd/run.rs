@@ -3,6 +3,7 @@
 use crate::{diag, input};
 use motion::machine::{CheckReport, MachineSetup, Severity, check_gcode, plan_gcode};
 use serde::Serialize;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -66,10 +67,14 @@ pub struct CheckArgs {
     /// Most problems to list.
     #[arg(long, default_value_t = 200)]
     pub max_problems: usize,
+    /// Print the problems and totals as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Load `printer.cfg` and build the machine, with diagnostics pointing into the file.
 pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, MachineSetup)> {
+    crate::output::register_input(path);
     let machine = config::MachineConfig::load(path)
         .map_err(|e| miette::Report::new(diag::config_error(&e)))?;
     for w in &machine.warnings {
@@ -199,9 +204,25 @@ pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
         &options,
     );
     bar.finish_and_clear();
-    let report = result.map_err(|e| match e {
-        ExecuteError::Pipeline(e) => pipeline_error(&args.file, e),
-        ExecuteError::Other(report) => report,
+    let report = result.map_err(|e| {
+        let (place, message, report) = match e {
+            ExecuteError::Pipeline(e) => {
+                let (place, message) = match &e {
+                    motion::machine::PipelineError::Gcode(g) => {
+                        ((g.span.line, g.span.column), g.kind.to_string())
+                    }
+                    motion::machine::PipelineError::Plan(p) => {
+                        ((p.span.line, p.span.column), p.kind.to_string())
+                    }
+                };
+                (Some(place), message, pipeline_error(&args.file, e))
+            }
+            ExecuteError::Other(report) => (None, report.to_string(), report),
+        };
+        if args.json {
+            super::print_json_error(&name, place, &message);
+        }
+        report
     })?;
     if args.json {
         crate::outln!(
@@ -254,16 +275,18 @@ pub fn execute(
         .collect();
     let step_dir = options.steps.as_deref();
     if let Some(dir) = step_dir {
+        crate::output::directory_output(dir).map_err(super::plain)?;
         std::fs::create_dir_all(dir)
             .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     }
     let mut sinks = Vec::with_capacity(motor_names.len());
     for name in &motor_names {
         let file = match step_dir {
-            Some(dir) => Some(
-                StepFileWriter::create(dir.join(format!("{name}.txt")))
-                    .map_err(|e| miette::miette!("{e}"))?,
-            ),
+            Some(dir) => {
+                let path = dir.join(format!("{name}.txt"));
+                crate::output::refuse_input(&path).map_err(super::plain)?;
+                Some(StepFileWriter::create(path).map_err(|e| miette::miette!("{e}"))?)
+            }
             None => None,
         };
         sinks.push(MotorSink {
@@ -399,7 +422,10 @@ pub fn render(r: &RunSummary) -> String {
         );
     }
     for w in r.warnings.iter().take(20) {
-        out += &format!("  warning: line {}:{}: {}\n", w.line, w.column, w.message);
+        out += &format!(
+            "  {}:{}:{}: warning: {}\n",
+            r.file, w.line, w.column, w.message
+        );
     }
     if r.warnings.len() > 20 {
         out += &format!(
@@ -410,34 +436,49 @@ pub fn render(r: &RunSummary) -> String {
     out
 }
 
-/// The moves CSV: written to a temporary file and renamed into place when complete.
-#[derive(Debug)]
+/// The moves CSV: written to a temporary file and renamed into place when complete (never over an input),
+/// or to standard output for `-`.
 struct CsvFile {
-    sink: motion::csv::CsvSink<std::io::BufWriter<tempfile::NamedTempFile>>,
-    path: PathBuf,
+    sink: motion::csv::CsvSink<std::io::BufWriter<Box<dyn std::io::Write + Send>>>,
+    /// The temporary file and where it goes; `None` for standard output.
+    temp: Option<(tempfile::NamedTempFile, PathBuf)>,
+}
+
+impl std::fmt::Debug for CsvFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CsvFile").finish_non_exhaustive()
+    }
 }
 
 impl CsvFile {
     fn create(path: &Path) -> miette::Result<Self> {
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let temp = tempfile::NamedTempFile::new_in(dir)
-            .map_err(|e| miette::miette!("cannot write {}: {e}", path.display()))?;
+        let fail =
+            |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
+        if crate::output::is_stdio(path) {
+            let out: Box<dyn std::io::Write + Send> = Box::new(std::io::stdout());
+            return Ok(CsvFile {
+                sink: motion::csv::CsvSink::new(std::io::BufWriter::new(out)),
+                temp: None,
+            });
+        }
+        let temp = crate::output::temp_file_for(path).map_err(super::plain)?;
+        let file = temp.reopen().map_err(|e| fail(&e))?;
+        let out: Box<dyn std::io::Write + Send> = Box::new(file);
         Ok(CsvFile {
-            sink: motion::csv::CsvSink::new(std::io::BufWriter::new(temp)),
-            path: path.to_path_buf(),
+            sink: motion::csv::CsvSink::new(std::io::BufWriter::new(out)),
+            temp: Some((temp, path.to_path_buf())),
         })
     }
 
     fn finish(self) -> miette::Result<()> {
-        let path = self.path;
-        let fail =
-            |e: &dyn std::fmt::Display| miette::miette!("cannot write {}: {e}", path.display());
+        let fail = |e: &dyn std::fmt::Display| miette::miette!("cannot write the moves: {e}");
         let writer = self.sink.finish().map_err(|e| fail(&e))?;
-        let temp = writer.into_inner().map_err(|e| fail(&e))?;
-        temp.persist(&path).map_err(|e| fail(&e))?;
+        let mut out = writer.into_inner().map_err(|e| fail(&e))?;
+        out.flush().map_err(|e| fail(&e))?;
+        if let Some((temp, path)) = self.temp {
+            temp.persist(&path)
+                .map_err(|e| miette::miette!("cannot write {}: {e}", path.display()))?;
+        }
         Ok(())
     }
 }
@@ -466,25 +507,53 @@ pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
     let report: CheckReport = check_gcode(&setup, reader, &name, args.max_problems);
     bar.finish_and_clear();
-    for p in &report.problems {
-        let label = match p.severity {
-            Severity::Error => "error",
-            Severity::Warning => "warning",
-        };
+    let label = |p: &motion::machine::Problem| match p.severity {
+        Severity::Error => "error",
+        Severity::Warning => "warning",
+    };
+    let errors = report.errors();
+    if args.json {
+        let problems: Vec<serde_json::Value> = report
+            .problems
+            .iter()
+            .map(|p| {
+                serde_json::json!({
+                    "line": p.span.line,
+                    "column": p.span.column,
+                    "severity": label(p),
+                    "message": p.message,
+                })
+            })
+            .collect();
+        let value = serde_json::json!({
+            "file": name,
+            "errors": errors,
+            "warnings": report.warning_count,
+            "print_time_s": report.end_time,
+            "slowed_moves": report.slow_moves,
+            "problems": problems,
+        });
         crate::outln!(
-            "{name}:{}:{}: {label}: {}",
-            p.span.line,
-            p.span.column,
-            p.message
+            "{}",
+            serde_json::to_string_pretty(&value).unwrap_or_default()
+        );
+    } else {
+        for p in &report.problems {
+            crate::outln!(
+                "{name}:{}:{}: {}: {}",
+                p.span.line,
+                p.span.column,
+                label(p),
+                p.message
+            );
+        }
+        crate::outln!(
+            "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
+            report.warning_count,
+            report.end_time,
+            report.slow_moves
         );
     }
-    let errors = report.errors();
-    crate::outln!(
-        "{name}: {errors} errors, {} warnings; {:.1} s of printing planned; {} moves slowed hard",
-        report.problems.len() - errors,
-        report.end_time,
-        report.slow_moves
-    );
     Ok(if errors > 0 {
         ExitCode::FAILURE
     } else {

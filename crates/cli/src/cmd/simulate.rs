@@ -62,6 +62,19 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
         correction,
         after: after.as_ref().map(RunReport::new),
     };
+    crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
+    for name in [
+        "report.txt",
+        "report.json",
+        "overlay.png",
+        "overlay.svg",
+        "deviation-map.png",
+        "overlay-after.png",
+        "overlay-after.svg",
+        "deviation-map-after.png",
+    ] {
+        crate::output::refuse_input(&args.out.join(name)).map_err(crate::cmd::plain)?;
+    }
     sim::write_report(&args.out, &report, &before, after.as_ref()).map_err(|e| report_error(&e))?;
     let text = if args.json {
         let mut json = serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?;
@@ -91,6 +104,7 @@ fn print_stdout(text: &str) -> miette::Result<()> {
 }
 
 fn load_config(path: &Path) -> miette::Result<config::MachineConfig> {
+    crate::output::register_input(path);
     config::MachineConfig::load(path).map_err(|e| miette::Report::new(diag::config_error(&e)))
 }
 
@@ -103,7 +117,13 @@ fn simulate_file(
     let (reader, name, bar) = input::open_gcode(path).map_err(crate::cmd::plain)?;
     let result = sim::simulate(believed, actual, reader, &name, options);
     bar.finish_and_clear();
-    result.map_err(|e| report_error(&e))
+    result.map_err(|e| match e {
+        // A planning error names the G-code file, line and column.
+        SimulationError::Plan(plan @ motion::machine::PipelineError::Plan(_)) => {
+            crate::cmd::run::pipeline_error(path, plan)
+        }
+        other => report_error(&other),
+    })
 }
 
 /// Diagnostics with the source line where the error has one.

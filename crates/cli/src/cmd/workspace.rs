@@ -48,6 +48,7 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     if !(args.cell > 0.05 && args.cell.is_finite()) {
         return Err(miette::miette!("--cell must be at least 0.05 mm"));
     }
+    crate::output::directory_output(&args.out).map_err(super::plain)?;
     let figures = map_and_draw(&machine.params, args.cell, &args.out, "workspace")?;
     if args.json {
         crate::outln!(
@@ -68,6 +69,22 @@ pub fn map_and_draw(
     stem: &str,
 ) -> miette::Result<WorkspaceFigures> {
     let map = workspace::map_machine(params, cell_mm, 0.0).map_err(|e| miette::miette!("{e}"))?;
+    let area = map.summary.reachable_area_mm2;
+    if area.is_nan() || area <= 0.0 {
+        return Err(miette::miette!(
+            "the {} machine reaches no point of the bed on a {cell_mm} mm grid: check its lengths, limits and \
+             base_protection_radius (nothing was written)",
+            map.machine
+        ));
+    }
+    // The maps are `<stem>-….png/svg`: none of them may be an input of this run.
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for entry in entries.flatten() {
+            if entry.file_name().to_string_lossy().starts_with(stem) {
+                crate::output::refuse_input(&entry.path()).map_err(super::plain)?;
+            }
+        }
+    }
     std::fs::create_dir_all(dir)
         .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     let written = plot::workspace::write_workspace_maps(&workspace_data(&map), dir, stem)

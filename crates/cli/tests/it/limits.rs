@@ -248,3 +248,81 @@ fn a_long_run_of_commands_without_moves_takes_linear_time() {
         scale(4),
     );
 }
+
+/// A spiral vase of `turns` turns (radius 30 mm about (60, 0), 0.1 mm per turn, 64 chords a turn), extruding
+/// all the way up.
+fn spiral_vase(turns: u32) -> String {
+    let mut text = String::from("G28\nM83\nG1 X90 Y0 Z0.2 F3000\n");
+    for i in 1..=turns * 64 {
+        let angle = std::f64::consts::TAU * f64::from(i) / 64.0;
+        let z = 0.2 + 0.1 * f64::from(i) / 64.0;
+        text += &format!(
+            "G1 X{:.3} Y{:.3} Z{z:.4} E0.1\n",
+            60.0 + 30.0 * angle.cos(),
+            30.0 * angle.sin()
+        );
+    }
+    text
+}
+
+/// Peak RSS (kB), the layer count and the size of report.txt of `simulate` on a spiral of `turns` turns.
+fn simulate_spiral(turns: u32) -> (u64, u64, u64) {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("vase.gcode");
+    std::fs::write(&input, spiral_vase(turns)).expect("write input");
+    let cfg = example_machine("polar");
+    let mut child = Command::new(binary())
+        .arg("simulate")
+        .arg("-c")
+        .arg(&cfg)
+        .arg("--actual")
+        .arg(&cfg)
+        .arg(&input)
+        .arg("-o")
+        .arg(scratch.path().join("report"))
+        // Nothing read from the child while it runs: its output must not fill a pipe.
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(scratch.path().join("stderr.txt")).expect("stderr file"))
+        .spawn()
+        .expect("start jointspace");
+    let pid = child.id();
+    let mut peak = 0;
+    while child.try_wait().expect("poll child").is_none() {
+        peak = peak.max(peak_rss_kb(pid).unwrap_or(0));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = child.wait().expect("exit status");
+    let stderr = std::fs::read_to_string(scratch.path().join("stderr.txt")).unwrap_or_default();
+    assert!(status.success(), "simulate failed: {stderr}");
+    let json: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(scratch.path().join("report/report.json")).expect("report.json"),
+    )
+    .expect("json report");
+    let layers = json["before"]["layer_count"].as_u64().expect("layer count");
+    let text = std::fs::metadata(scratch.path().join("report/report.txt")).expect("report.txt");
+    (peak, layers, text.len())
+}
+
+#[test]
+fn simulate_memory_and_report_stay_flat_on_a_long_spiral() {
+    let (small_rss, small_layers, small_text) = simulate_spiral(300);
+    let (large_rss, large_layers, large_text) = simulate_spiral(1200);
+    println!(
+        "spiral 300 turns: {small_layers} layers, peak {:.1} MB, report.txt {small_text} B; 1200 turns: \
+         {large_layers} layers, peak {:.1} MB, report.txt {large_text} B",
+        small_rss as f64 / 1024.0,
+        large_rss as f64 / 1024.0
+    );
+    // One layer per turn.
+    assert!(small_layers.abs_diff(300) <= 1 && large_layers.abs_diff(1200) <= 1);
+    assert!(small_rss > 0, "could not read the child's VmHWM");
+    // Four times the print: memory and report hardly grow.
+    assert!(
+        large_rss <= small_rss + small_rss / 4,
+        "{small_rss} kB → {large_rss} kB"
+    );
+    assert!(
+        large_text <= small_text + small_text / 4,
+        "{small_text} B → {large_text} B"
+    );
+}

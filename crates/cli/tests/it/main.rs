@@ -2,10 +2,12 @@
 //! time, determinism, interruption) and fuzz regressions. Every test runs the built binary as a user would.
 
 mod catalogue;
+mod check;
 mod common;
 mod determinism;
 mod fuzz_regressions;
 mod host;
 mod interrupt;
+mod json;
 mod limits;
 mod output;

@@ -23,7 +23,7 @@ fn polar_setup(commands: &[Command]) -> Setup {
         options: ConvertOptions {
             scale_xy: scale,
             translate,
-            ..ConvertOptions::default()
+            ..crate::common::homed()
         },
     }
 }
@@ -36,7 +36,7 @@ fn scara_setup(commands: &[Command]) -> Setup {
         options: ConvertOptions {
             scale_xy: scale,
             translate,
-            ..ConvertOptions::default()
+            ..crate::common::homed()
         },
     }
 }
@@ -177,8 +177,10 @@ fn measure_each(s: &Setup, text: &[u8], fixed: Segmentation) -> (Row, Vec<Segmen
     let (out, _) = convert_text(&s.map, &options, text).expect("conversion succeeds");
     let commands = convert::read_commands(text, "test.gcode").expect("input parses");
     let mut each = Vec::new();
-    let r = convert::verify_segments(&s.map, &options, &commands, &out, |d| each.push(d))
-        .expect("output readable");
+    let r = convert::verify_segments(&s.map, &options, &commands, out.as_bytes(), |d| {
+        each.push(d)
+    })
+    .expect("output readable");
     assert_eq!(r.unmatched, 0);
     let row = Row {
         max: r.max_deviation,

@@ -14,7 +14,7 @@ use crate::machines;
 fn radians() -> ConvertOptions {
     ConvertOptions {
         angle_unit: AngleUnit::Radians,
-        ..ConvertOptions::default()
+        ..crate::common::homed()
     }
 }
 
@@ -35,9 +35,10 @@ fn motors_for(
 
 #[test]
 fn thesis_example_recentres_the_part() {
-    // Thesis: R_old = 5, φ_old = π/4, centre displaced by d = (2, 1) → R ≈ 2.97, φ ≈ 1.03 rad.
-    // The thesis re-centres (x − dx, y − dy): exact for an arm line through the centre; its 2.97 comes
-    // from rounding 5·cos 45° to 3.54 (the exact value is 2.964).
+    // Thesis: R_old = 5, φ_old = π/4, centre displaced by d = (2, 1) → R ≈ 2.97, φ ≈ 1.03 rad: the polar
+    // coordinates of p − d, the part shifted (`convert --centre-shift`); its 2.97 comes from rounding 5·cos 45°
+    // to 3.54 (the exact value is 2.964). Not the arm-offset model (`--centre-offset`), which for the same
+    // d gives R 2.899 (see `the_part_shift_and_the_arm_offsets_are_different_models`).
     let p = [5.0 * FRAC_PI_4.cos(), 5.0 * FRAC_PI_4.sin()];
     let options = ConvertOptions {
         translate: [-2.0, -1.0],
@@ -90,7 +91,7 @@ fn a_bed_with_a_one_millimetre_offset_is_corrected_and_verified() {
     let options = ConvertOptions {
         scale_xy,
         translate,
-        ..ConvertOptions::default()
+        ..crate::common::homed()
     };
     let correction = CentreCorrection {
         arm_zero_offset: 1.0,
@@ -109,7 +110,7 @@ fn a_bed_with_a_one_millimetre_offset_is_corrected_and_verified() {
 
     // The uncorrected conversion, run on the real machine, misses by about the offset.
     let (plain, _) = convert_text(&ideal, &options, &text).expect("converts");
-    let uncorrected = verify(&real, &options, &commands, &plain).expect("readable");
+    let uncorrected = verify(&real, &options, &commands, plain.as_bytes()).expect("readable");
     assert!(uncorrected.max_deviation > 0.9, "{uncorrected:?}");
 
     // Cartesian output for a firmware with the ideal model: the real nozzle lands on the path.
@@ -128,4 +129,30 @@ fn a_bed_with_a_one_millimetre_offset_is_corrected_and_verified() {
         "1 mm offset: corrected max {:.4} mm (motor output), {:.4} mm (Cartesian output); uncorrected {:.3} mm",
         corrected.max_deviation, report.max_deviation, uncorrected.max_deviation
     );
+}
+
+#[test]
+fn the_part_shift_and_the_arm_offsets_are_different_models() {
+    // Even with no sideways offset: the shifted part is |p − d| from the axis; an arm whose zero is dx along it
+    // reaches |p| at r = |p| − dx.
+    let p = [5.0 * FRAC_PI_4.cos(), 5.0 * FRAC_PI_4.sin()];
+    let ideal = AxisMap::motors(machines::polar(), Target::Cylindrical).expect("map");
+    for (dx, dy) in [(2.0, 0.0), (2.0, 1.0)] {
+        let shifted = ConvertOptions {
+            translate: [-dx, -dy],
+            ..radians()
+        };
+        let [r_shift, _] = motors_for(&ideal, &shifted, p).expect("reachable");
+        let arm = CentreCorrection {
+            arm_zero_offset: dx,
+            arm_lateral_offset: dy,
+        }
+        .motor_map(&machines::polar_params(), Target::Cylindrical)
+        .expect("map");
+        let [r_arm, _] = motors_for(&arm, &radians(), p).expect("reachable");
+        println!("d = ({dx}, {dy}): part shifted R {r_shift:.4}, arm offsets R {r_arm:.4}");
+        assert!((r_shift - (p[0] - dx).hypot(p[1] - dy)).abs() < 1e-4);
+        assert!((r_arm - (-dx + (25.0f64 - dy * dy).sqrt())).abs() < 1e-4);
+        assert!((r_shift - r_arm).abs() > 0.05);
+    }
 }

@@ -237,3 +237,36 @@ fn stats_agree_with_the_naive_scan() {
         );
     }
 }
+
+#[test]
+fn stats_count_layers_in_files_without_layer_markers() {
+    let Some(files) = corpus_files() else { return };
+    for path in &files {
+        let name = file_name(path);
+        let text = std::fs::read(path).expect("read");
+        let stats = file_stats(&text[..], name.as_str()).unwrap_or_else(|e| panic!("{e}"));
+        assert!(stats.layers > 0, "{name}: no layers");
+        if stats.layer_markers > 0 {
+            assert_eq!(stats.layers, stats.layer_markers, "{name}");
+        }
+        if name.contains("slic3r-prusa-1.33_benchy") {
+            // Slic3r 1.33 writes no layer comments: 0.2 mm layers from Z 0.2 to 48.0.
+            let bbox = stats.extrusion_bbox.expect("extrudes");
+            let expected = ((bbox.max[2] - bbox.min[2]) / 0.2).round() as u64 + 1;
+            assert_eq!((stats.layer_markers, stats.layers), (0, expected), "{name}");
+            assert_eq!(expected, 240);
+        }
+    }
+    // A synthetic file: two islands per layer with a Z hop between them, three layers, no markers.
+    let mut text = String::from("M83\nG1 Z0.2 F600\n");
+    for layer in 1..=3 {
+        let z = 0.2 * f64::from(layer);
+        text += &format!(
+            "G1 Z{z:.1}\nG1 X0 Y0\nG1 X10 Y0 E1\nG1 Z{:.1}\nG1 X20 Y0\n",
+            z + 0.4
+        );
+        text += &format!("G1 Z{z:.1}\nG1 X30 Y0 E2\n");
+    }
+    let stats = file_stats(text.as_bytes(), "t").expect("reads");
+    assert_eq!((stats.layer_markers, stats.layers), (0, 3));
+}

@@ -66,6 +66,8 @@ fn cases() -> Vec<(&'static [u8], ErrorKind, u64, u32)> {
         (b"G2 X10 Y0 R4.9", ErrorKind::ArcRadiusTooSmall, 1, 1),
         (b"G91\nG2 X10 Y0 I5", ErrorKind::ArcRelativeMode, 2, 1),
         (b"G2 X0 Y0 I0 J0", ErrorKind::ArcZeroRadius, 1, 1),
+        (b"G1 X10 Y0\nG2 X10 Y0 R100", ErrorKind::ArcRClosed, 2, 1),
+        (b"G1 X10 Y0\nG2 X20 Y0 R0", ErrorKind::ArcZeroRadius, 2, 1),
         (b"G18\nG3 X1 Z1 I1", ErrorKind::ArcPlaneUnsupported, 2, 1),
         (b"G4 P-5", ErrorKind::NegativeDwell, 1, 4),
         (b"M220 S0", ErrorKind::InvalidParameter("S".into()), 1, 6),

@@ -6,3 +6,4 @@ mod acceptance;
 mod common;
 mod motor_model;
 mod report_files;
+mod spiral_vase;

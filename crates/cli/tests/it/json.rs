@@ -1,0 +1,221 @@
+//! `--json` on every command that reports (check, convert, calibrate, workspace, run — errors included), and
+//! warnings that name their file.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+
+use crate::common::{binary, example_machine};
+
+fn jointspace(dir: &Path, args: &[&str]) -> Output {
+    Command::new(binary())
+        .current_dir(dir)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("run jointspace")
+}
+
+fn json_of(output: &Output) -> serde_json::Value {
+    serde_json::from_slice(&output.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}):\n{}\n{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        )
+    })
+}
+
+/// Line 3 has a parameter G1 ignores (a warning), line 4 a move out of reach (an error).
+const PART: &str = "G28\nG1 X10 Y0 Z1 F600\nG1 X11 Y0 Q5\nG1 X300 Y0\nG1 X20 Y0\n";
+
+fn scratch() -> (tempfile::TempDir, String) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    std::fs::write(dir.path().join("part.gcode"), PART).expect("input");
+    let cfg = example_machine("polar").display().to_string();
+    (dir, cfg)
+}
+
+#[test]
+fn check_json_lists_every_problem() {
+    let (dir, cfg) = scratch();
+    let output = jointspace(dir.path(), &["check", "-c", &cfg, "part.gcode", "--json"]);
+    assert_eq!(output.status.code(), Some(1));
+    let json = json_of(&output);
+    assert_eq!(json["errors"], 1);
+    assert_eq!(json["warnings"], 1);
+    let problems = json["problems"].as_array().expect("problems");
+    assert_eq!(
+        (problems[0]["line"].as_u64(), problems[0]["column"].as_u64()),
+        (Some(3), Some(11))
+    );
+    assert_eq!(problems[0]["severity"], "warning");
+    assert_eq!(
+        problems[0]["message"],
+        "parameter Q ignored by this command"
+    );
+    assert_eq!(
+        (
+            problems[1]["line"].as_u64(),
+            problems[1]["severity"].as_str()
+        ),
+        (Some(4), Some("error"))
+    );
+}
+
+#[test]
+fn run_json_reports_its_error_as_json() {
+    let (dir, cfg) = scratch();
+    let output = jointspace(dir.path(), &["run", "-c", &cfg, "part.gcode", "--json"]);
+    assert_eq!(output.status.code(), Some(1));
+    let json = json_of(&output);
+    assert_eq!(json["error"]["file"], "part.gcode");
+    assert_eq!(
+        (
+            json["error"]["line"].as_u64(),
+            json["error"]["column"].as_u64()
+        ),
+        (Some(4), Some(1))
+    );
+    assert!(
+        json["error"]["message"]
+            .as_str()
+            .expect("message")
+            .contains("not reachable")
+    );
+}
+
+#[test]
+fn convert_json_gives_counts_verification_and_errors() {
+    let (dir, cfg) = scratch();
+    std::fs::write(
+        dir.path().join("ok.gcode"),
+        "G28\nG1 X10 Y0 Z1 F600\nG1 X20 Y5 E1\n",
+    )
+    .expect("input");
+    let args = [
+        "convert",
+        "-c",
+        &cfg,
+        "ok.gcode",
+        "-o",
+        "out.gcode",
+        "--verify",
+        "--json",
+    ];
+    let output = jointspace(dir.path(), &args);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let json = json_of(&output);
+    assert_eq!(json["moves"], 1);
+    assert_eq!(json["firmware"], "Marlin");
+    assert_eq!(
+        json["verification"]["filament_in_mm"],
+        json["verification"]["filament_out_mm"]
+    );
+    assert!(json["verification_failure"].is_null());
+    // An error: as JSON on stdout, with its place.
+    let args = [
+        "convert",
+        "-c",
+        &cfg,
+        "part.gcode",
+        "-o",
+        "bad.gcode",
+        "--json",
+    ];
+    let output = jointspace(dir.path(), &args);
+    assert_eq!(output.status.code(), Some(1));
+    let json = json_of(&output);
+    assert_eq!(json["error"]["line"], 4);
+    assert!(!dir.path().join("bad.gcode").exists());
+}
+
+#[test]
+fn calibrate_json_is_the_result() {
+    let (dir, _) = scratch();
+    let args = [
+        "calibrate",
+        "centre",
+        "--simulate",
+        "--offset",
+        "0.5,-0.3",
+        "-o",
+        "c.json",
+        "--json",
+    ];
+    let output = jointspace(dir.path(), &args);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let json = json_of(&output);
+    assert!((json["arm_zero_offset"].as_f64().expect("dx") - 0.5).abs() < 0.01);
+    assert!((json["arm_lateral_offset"].as_f64().expect("dy") + 0.3).abs() < 0.01);
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("c.json")).expect("file"))
+            .expect("json");
+    assert_eq!(file, json);
+}
+
+#[test]
+fn warnings_name_their_file() {
+    let (dir, cfg) = scratch();
+    std::fs::write(
+        dir.path().join("w.gcode"),
+        "G28\nG1 X10 Y0 Z1 F600\nG1 X11 Y0 Q5\n",
+    )
+    .expect("input");
+    let run = jointspace(dir.path(), &["run", "-c", &cfg, "w.gcode"]);
+    assert!(
+        String::from_utf8_lossy(&run.stdout).contains("w.gcode:3:11: warning: parameter Q ignored")
+    );
+    let check = jointspace(dir.path(), &["check", "-c", &cfg, "w.gcode"]);
+    let text = String::from_utf8_lossy(&check.stdout);
+    assert!(
+        text.contains("w.gcode:3:11: warning: parameter Q ignored by this command\n"),
+        "{text}"
+    );
+    let convert = jointspace(
+        dir.path(),
+        &["convert", "-c", &cfg, "w.gcode", "-o", "o.gcode"],
+    );
+    assert!(convert.status.success());
+    let text = String::from_utf8_lossy(&convert.stderr);
+    assert!(
+        text.contains("w.gcode:3:11: warning: parameter Q ignored"),
+        "{text}"
+    );
+}
+
+#[test]
+fn simulate_names_the_file_of_a_planning_error() {
+    let (dir, cfg) = scratch();
+    std::fs::write(
+        dir.path().join("fat.gcode"),
+        "G28\nG1 X10 Y0 Z1 F600\nG1 X20 Y0 E50\n",
+    )
+    .expect("input");
+    let output = jointspace(
+        dir.path(),
+        &[
+            "simulate",
+            "-c",
+            &cfg,
+            "--actual",
+            &cfg,
+            "fat.gcode",
+            "-o",
+            "report",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("fat.gcode:3:1: move exceeds the maximum extrusion cross-section"),
+        "{stderr}"
+    );
+}

@@ -354,31 +354,26 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
 
 fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
     let g = start_geometry(args.config.as_deref())?;
-    let candidates = scara::pose_grid(
-        (-150f64.to_radians(), 150f64.to_radians()),
-        (-150f64.to_radians(), 150f64.to_radians()),
-        25,
-        25,
+    // Crosses well outside the base and in front of the shoulder (the FEKT-SCARA work area).
+    let admissible = |_: (f64, f64), p: [f64; 2]| {
+        let r = (p[0] - g.offset_x).hypot(p[1] - g.offset_y);
+        r > 70.0 && p[1] > g.offset_y + 20.0
+    };
+    let pattern = scara::pattern(
+        &g,
+        args.poses,
+        &admissible,
+        &scara::PatternOptions::default(),
     );
-    let reachable: Vec<(f64, f64)> = candidates
-        .into_iter()
-        .filter(|&(a, b)| {
-            let p = g.forward(a, b);
-            let r = (p[0] - g.offset_x).hypot(p[1] - g.offset_y);
-            r > 70.0 && p[1] > g.offset_y + 20.0
-        })
-        .collect();
-    let poses = scara::suggest_poses(&g, &[], &reachable, args.poses);
-    let text = scara::calibration_pattern_gcode(&g, &poses, &scara::PatternOptions::default());
+    let (poses, text) = (&pattern.poses, &pattern.gcode);
     crate::output::write_output(&args.out, |w| Ok(w.write_all(text.as_bytes())?))
         .map_err(super::plain)?;
-    let id = scara::analyse_poses(&g, &poses);
     crate::outln!(
         "{} crosses written to {} (condition number of the poses {:.1}); print it, measure each cross centre and \
          run `jointspace calibrate scara --measurements points.csv`",
         poses.len(),
         args.out.display(),
-        id.condition_number
+        pattern.condition_number
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -493,24 +493,35 @@ fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
     Ok(None)
 }
 
+/// The place and message of a conversion error that belongs to a G-code line (its text starts with its own
+/// `line l:c:`, which the diagnostics replace with file, line and column).
+fn on_line(e: &convert::ConvertError) -> Option<(gcode::Span, String)> {
+    use convert::ConvertError as E;
+    match e {
+        E::Unreachable { span, .. }
+        | E::Unsupported { span, .. }
+        | E::NoConvergence { span, .. }
+        | E::UnknownPosition { span, .. } => {
+            let text = e.to_string();
+            let message = text
+                .split_once(": ")
+                .map_or(text.as_str(), |(_, rest)| rest);
+            Some((*span, message.to_string()))
+        }
+        _ => None,
+    }
+}
+
 /// A conversion error: on a G-code line when it has one.
 fn convert_error(args: &Args, e: anyhow::Error) -> Failure {
     use convert::ConvertError as E;
     let (place, message) = match e.downcast_ref::<E>() {
         Some(E::Gcode(g)) => (Some((g.span.line, g.span.column)), g.kind.to_string()),
-        Some(
-            other @ (E::Unreachable { span, .. }
-            | E::Unsupported { span, .. }
-            | E::NoConvergence { span, .. }
-            | E::UnknownPosition { span, .. }),
-        ) => {
-            let text = other.to_string();
-            let message = text
-                .split_once(": ")
-                .map_or(text.as_str(), |(_, rest)| rest);
-            (Some((span.line, span.column)), message.to_string())
-        }
-        _ => (None, format!("{e:#}")),
+        Some(other) => match on_line(other) {
+            Some((span, message)) => (Some((span.line, span.column)), message),
+            None => (None, format!("{e:#}")),
+        },
+        None => (None, format!("{e:#}")),
     };
     Failure {
         report: convert_report(args, e),
@@ -523,26 +534,15 @@ fn convert_report(args: &Args, e: anyhow::Error) -> miette::Report {
     use convert::ConvertError as E;
     match e.downcast::<E>() {
         Ok(E::Gcode(e)) => miette::Report::new(diag::gcode_error(&e)),
-        Ok(
-            other @ (E::Unreachable { span, .. }
-            | E::Unsupported { span, .. }
-            | E::NoConvergence { span, .. }
-            | E::UnknownPosition { span, .. }),
-        ) => {
-            // The error's text starts with its own `line l:c:`; the diagnostic names file, line and column.
-            let text = other.to_string();
-            let message = text
-                .split_once(": ")
-                .map_or(text.as_str(), |(_, rest)| rest)
-                .to_string();
-            miette::Report::new(diag::at_gcode_line(
+        Ok(other) => match on_line(&other) {
+            Some((span, message)) => miette::Report::new(diag::at_gcode_line(
                 &args.file,
                 span,
                 message,
                 "here".into(),
-            ))
-        }
-        Ok(other) => miette::miette!("{}: {other}", args.file.display()),
+            )),
+            None => miette::miette!("{}: {other}", args.file.display()),
+        },
         Err(e) => super::plain(e),
     }
 }

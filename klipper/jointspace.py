@@ -26,10 +26,6 @@ else:
 HERE = os.path.dirname(os.path.realpath(__file__))
 LIBRARY_NAME = "libjointspace_klipper.so"
 ERROR_LEN = 512
-STEPPER_SECTIONS = {
-    "jointspace_polar": ("stepper_bed", "stepper_arm", "stepper_z"),
-    "jointspace_scara": ("stepper_a", "stepper_b", "stepper_z"),
-}
 
 
 ######################################################################
@@ -58,7 +54,9 @@ def _library_path(config):
 
 
 def _stepper_kinematics_layout(ffi):
-    # Klipper's struct stepper_kinematics as this interpreter's cffi sees it (same header in every host).
+    # Klipper's struct stepper_kinematics (itersolve.h, the same in the three hosts; the tests compile against
+    # each host's header) as laid out on this platform: catches a library built for another ABI.
+    # It also gives the probe of the host's arithmetic the offset of calc_position_cb.
     ffi.cdef("""
         struct jointspace_layout_probe {
             double step_dist, commanded_pos; void *sc;

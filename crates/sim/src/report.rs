@@ -289,6 +289,18 @@ fn steps_text(steps: &[(String, u64)]) -> String {
         .join(", ")
 }
 
+/// Every file [`write_report`] may write into its folder (the `-after` ones only with a correction).
+pub const REPORT_FILES: [&str; 8] = [
+    "report.txt",
+    "report.json",
+    "overlay.png",
+    "overlay.svg",
+    "deviation-map.png",
+    "overlay-after.png",
+    "overlay-after.svg",
+    "deviation-map-after.png",
+];
+
 /// Write `report.txt`, `report.json`, `overlay.png/.svg`, `deviation-map.png` (and `-after` pictures).
 pub fn write_report(
     dir: &Path,

@@ -63,16 +63,7 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
         after: after.as_ref().map(RunReport::new),
     };
     crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
-    for name in [
-        "report.txt",
-        "report.json",
-        "overlay.png",
-        "overlay.svg",
-        "deviation-map.png",
-        "overlay-after.png",
-        "overlay-after.svg",
-        "deviation-map-after.png",
-    ] {
+    for name in sim::report::REPORT_FILES {
         crate::output::refuse_input(&args.out.join(name)).map_err(crate::cmd::plain)?;
     }
     sim::write_report(&args.out, &report, &before, after.as_ref()).map_err(|e| report_error(&e))?;

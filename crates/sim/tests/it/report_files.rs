@@ -6,16 +6,7 @@ use sim::scenario::polar_lateral_offset_demo;
 fn report_folder_has_text_json_and_pictures() {
     let dir = tempfile::tempdir().expect("tempdir");
     let report = polar_lateral_offset_demo(dir.path()).expect("demo");
-    for name in [
-        "report.txt",
-        "report.json",
-        "overlay.png",
-        "overlay.svg",
-        "deviation-map.png",
-        "overlay-after.png",
-        "overlay-after.svg",
-        "deviation-map-after.png",
-    ] {
+    for name in sim::report::REPORT_FILES {
         let meta = std::fs::metadata(dir.path().join(name)).expect(name);
         assert!(meta.len() > 1000, "{name} is only {} bytes", meta.len());
     }

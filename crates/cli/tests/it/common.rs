@@ -12,6 +12,16 @@ pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// Runs the binary in `dir` with `args` and no standard input.
+pub fn jointspace_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(binary())
+        .current_dir(dir)
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("run jointspace")
+}
+
 /// An example machine's printer.cfg (`cartesian`, `polar`, `scara`).
 pub fn example_machine(name: &str) -> PathBuf {
     workspace_root()

@@ -1,19 +1,9 @@
 //! `--json` on every command that reports (check, convert, calibrate, workspace, run — errors included), and
 //! warnings that name their file.
 
-use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 
-use crate::common::{binary, example_machine};
-
-fn jointspace(dir: &Path, args: &[&str]) -> Output {
-    Command::new(binary())
-        .current_dir(dir)
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .expect("run jointspace")
-}
+use crate::common::{example_machine, jointspace_in as jointspace};
 
 fn json_of(output: &Output) -> serde_json::Value {
     serde_json::from_slice(&output.stdout).unwrap_or_else(|e| {

@@ -2,7 +2,7 @@
 
 use std::process::{Command, Stdio};
 
-use crate::common::{CircleStream, binary, example_machine};
+use crate::common::{CircleStream, binary, example_machine, jointspace_in as jointspace};
 
 #[test]
 fn closed_stdout_is_not_a_panic() {
@@ -38,15 +38,6 @@ fn closed_stdout_is_not_a_panic() {
 /// A small print with the modes slicers mix: absolute E (`M82`), `G92 E0`, and end code in `G91`.
 const MIXED_MODES: &str = "G28\nM82\nG92 E0\nG1 Z0.3 F600\nG1 X20 Y0 F1800\nG1 X30 Y0 E0.5\nG1 X30 Y10 E0.6\n\
 G91\nG1 Z1 E-0.1\nG1 X-5 Y5\nG90\n";
-
-fn jointspace(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
-    Command::new(binary())
-        .current_dir(dir)
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .expect("run jointspace")
-}
 
 #[test]
 fn no_command_overwrites_its_input_under_any_name() {

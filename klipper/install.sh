@@ -4,7 +4,7 @@
 #   --host-dir DIR  the Klipper or Kalico checkout (default: ~/klipper)
 #   --uninstall     remove what install put there (the tree is left as it was)
 #   --no-build      skip `cargo build --release -p klipper` (the library must already be built)
-# Klipper: klippy/extras/jointspace.py is a symlink to this folder's jointspace.py, and it is listed in the
+# Klipper: klippy/extras/jointspace.py (and jointspace_scan.py) are symlinks to this folder's files, listed in the
 # tree's .git/info/exclude so Moonraker does not report the repository as dirty. Kalico: klippy/plugins/.
 # The module finds libjointspace_klipper.so in this repository's target/release/.
 set -euo pipefail
@@ -25,8 +25,12 @@ done
 [ -f "$HOST_DIR/klippy/klippy.py" ] || { echo "install.sh: $HOST_DIR is not a Klipper or Kalico tree (no klippy/klippy.py)" >&2; exit 2; }
 HOST_DIR=$(cd "$HOST_DIR" && pwd)
 if [ -d "$HOST_DIR/klippy/plugins" ]; then DEST=klippy/plugins; else DEST=klippy/extras; fi
-LINK=$DEST/jointspace.py
-EXCLUDE_LINES=("$LINK" "$DEST/__pycache__/jointspace.*")
+# The modules Klipper loads: jointspace.py (from [jointspace]) and the helpers it imports from its own folder.
+MODULES=(jointspace.py jointspace_scan.py)
+EXCLUDE_LINES=()
+for module in "${MODULES[@]}"; do
+  EXCLUDE_LINES+=("$DEST/$module" "$DEST/__pycache__/${module%.py}.*")
+done
 
 exclude_file() {
   # The tree's own exclude list, if it is a git checkout (a worktree's .git is a file naming the real one).
@@ -34,7 +38,9 @@ exclude_file() {
 }
 
 if [ $UNINSTALL = 1 ]; then
-  rm -f "$HOST_DIR/$LINK" "$HOST_DIR/$DEST"/__pycache__/jointspace.*
+  for module in "${MODULES[@]}"; do
+    rm -f "$HOST_DIR/$DEST/$module" "$HOST_DIR/$DEST/__pycache__/${module%.py}".*
+  done
   rmdir "$HOST_DIR/$DEST/__pycache__" 2>/dev/null || true
   if ex=$(exclude_file) && [ -f "$ex" ]; then
     for line in "${EXCLUDE_LINES[@]}"; do
@@ -54,7 +60,9 @@ LIBRARY=${CARGO_TARGET_DIR:-$REPO/target}/release/libjointspace_klipper.so
 if [ "$(realpath "$LIBRARY")" != "$(realpath -m "$REPO/target/release/libjointspace_klipper.so")" ]; then
   echo "note: the library is outside this repository's target/: add 'library: $LIBRARY' to [jointspace]"
 fi
-ln -sfn "$HERE/jointspace.py" "$HOST_DIR/$LINK"
+for module in "${MODULES[@]}"; do
+  ln -sfn "$HERE/$module" "$HOST_DIR/$DEST/$module"
+done
 if ex=$(exclude_file); then
   mkdir -p "$(dirname "$ex")"
   touch "$ex"
@@ -62,4 +70,4 @@ if ex=$(exclude_file); then
     grep -qxF -- "$line" "$ex" || echo "$line" >> "$ex"
   done
 fi
-echo "jointspace installed into $HOST_DIR/$LINK; add [jointspace] to printer.cfg and restart Klipper"
+echo "jointspace installed into $HOST_DIR/$DEST; add [jointspace] to printer.cfg and restart Klipper"

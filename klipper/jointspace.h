@@ -36,6 +36,16 @@ int jointspace_move_waypoints(struct jointspace_machine *m, double start_x, doub
                               double bed_angle, double *out, int max);
 int jointspace_scara_pattern(struct jointspace_machine *m, int count, double cross_size, char *gcode,
                              size_t gcode_len, char *template_text, size_t template_len);
+/* The Hall-sensor centre scan ([jointspace] hall_* settings). */
+struct jointspace_hall_scan {
+    int magnet_count;
+    double ring_radius, max_offset, pass_pitch, field_reach, threshold;
+    double adc_reference, sensitivity, saturation, max_sigma, sensor_alignment;
+};
+int jointspace_scan_passes(const struct jointspace_hall_scan *settings, double *arms, int max,
+                           double *bed_overlap, char *error, size_t error_len);
+int jointspace_scan_centre(const struct jointspace_hall_scan *settings, const double *samples, size_t count,
+                           double *result, char *csv, size_t csv_len, char *report, size_t report_len);
 int jointspace_declared_home(struct jointspace_machine *m, double *xyz);
 int jointspace_reach_margin(struct jointspace_machine *m, double x, double y, double z, double *margin);
 #endif

@@ -9,6 +9,7 @@
 # registers the kinematics "jointspace_polar" and "jointspace_scara" before [printer] imports them. The
 # machine itself (geometry, offsets, limits, reach) lives in libjointspace_klipper.so, built from the same
 # printer.cfg keys the jointspace command line reads; Klipper's itersolve calls that library for every step.
+import contextlib
 import inspect
 import logging
 import math
@@ -22,6 +23,11 @@ if KALICO:
 else:
     import chelper
     import stepper
+
+try:
+    from . import jointspace_scan
+except ImportError:  # loaded outside a package
+    import jointspace_scan
 
 HERE = os.path.dirname(os.path.realpath(__file__))
 LIBRARY_NAME = "libjointspace_klipper.so"
@@ -352,11 +358,10 @@ class JointspaceKinematics:
             forcepos[axis] += position_max - info.position_endstop
         homing_state.home_rails([rail], forcepos, homepos)
 
-    def home_in_joint_space(self, homing_state, order, start):
-        """Homes the XY joints one after the other in joint space: each joint's solver is swapped for a linear
-        one (as FORCE_MOVE does), so the toolhead's X and Y stand for the two joint readings (degrees for
-        angles, mm for a rail) and a homing move turns one joint alone. Returns the joint readings it ends at."""
-        joints = list(start)
+    @contextlib.contextmanager
+    def joint_space_solvers(self):
+        """While inside, the XY joints' solvers are linear ones (as FORCE_MOVE does): the toolhead's X and Y stand
+        for the two joint readings (degrees for angles, mm for a rail), and a move turns the joints directly."""
         self.toolhead.flush_step_generation()
         saved = {}
         self.joint_space = True
@@ -368,6 +373,18 @@ class JointspaceKinematics:
                 coeffs[self.joint_names.index(motor)] = self.joint_scale(motor)
                 sk = self.machine.linear_stepper_kinematics(*coeffs)
                 saved[s] = s.set_stepper_kinematics(sk)
+            yield
+            self.toolhead.flush_step_generation()
+        finally:
+            for s, sk in saved.items():
+                s.set_stepper_kinematics(sk)
+            self.joint_space = False
+
+    def home_in_joint_space(self, homing_state, order, start):
+        """Homes the XY joints one after the other in joint space, each homing move turning one joint alone.
+        Returns the joint readings it ends at."""
+        joints = list(start)
+        with self.joint_space_solvers():
             for axis in order:
                 rail = self.joint_rails[self.joint_names[axis]]
                 others = list(joints) + [None]
@@ -375,12 +392,21 @@ class JointspaceKinematics:
                 self._home_rail(homing_state, axis, rail, others[:3])
                 # Where the joint ended: its endstop, or short of it after Kalico's final retract.
                 joints = self.toolhead.get_position()[:2]
-            self.toolhead.flush_step_generation()
-        finally:
-            for s, sk in saved.items():
-                s.set_stepper_kinematics(sk)
-            self.joint_space = False
         return joints
+
+    def enter_joint_space(self):
+        """Declares the toolhead at the motors' joint readings; call inside joint_space_solvers()."""
+        readings = {name: s.get_commanded_position() for name, s in self.motor_steppers}
+        pos = self.toolhead.get_position()
+        pos[:3] = self.joint_coordinates(readings)
+        self.toolhead.set_position(pos)
+
+    def leave_joint_space(self):
+        """Declares the toolhead at the pose the motors reached in joint space (after joint_space_solvers())."""
+        readings = {name: s.get_commanded_position() for name, s in self.motor_steppers}
+        pos = self.toolhead.get_position()
+        pos[:3] = self.calc_position(readings)
+        self.toolhead.set_position(pos)
 
     def joint_coordinates(self, stepper_positions):
         # The toolhead position while homing in joint space: X and Y are the joint readings.
@@ -678,6 +704,10 @@ class Jointspace:
         _register("jointspace_polar", load_kinematics_polar)
         _register("jointspace_scara", load_kinematics_scara)
         self.printer.register_event_handler("klippy:connect", self._handle_connect)
+        # The Hall-sensor centre scan, for a polar bed with magnets and a sensor on the arm.
+        self.centre_scan = None
+        if config.get("hall_pin", None) is not None:
+            self.centre_scan = jointspace_scan.HallCentreScan(config, (ffi, lib))
 
     def _handle_connect(self):
         kin = self.printer.lookup_object("toolhead").get_kinematics()
@@ -687,7 +717,10 @@ class Jointspace:
             self.splitter = MoveSplitter(self.printer, kin)
 
     def get_status(self, eventtime):
-        return {"version": self.version, "split_moves": self.splitter is not None}
+        status = {"version": self.version, "split_moves": self.splitter is not None}
+        if self.centre_scan is not None:
+            status["centre_scan"] = self.centre_scan.last_result
+        return status
 
 
 def load_config(config):

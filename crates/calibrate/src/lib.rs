@@ -5,6 +5,7 @@ pub mod circle;
 mod csv;
 pub mod scan;
 pub mod scara;
+pub mod sweep;
 
 pub use circle::{Circle, CircleError, CircleFit, Point};
 pub use scan::{CentreResult, PeakMethod, ScanError, ScanHardware, ScanParams};

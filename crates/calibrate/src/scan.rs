@@ -156,6 +156,26 @@ pub enum ScanError {
         column: usize,
         message: String,
     },
+    #[error(
+        "the scan recorded no sensor readings (no ADC data: batch mode, or the sensor is not reporting)"
+    )]
+    NoSamples,
+    #[error("the Hall sensor saturates: {0}")]
+    Saturated(String),
+    #[error("the {side} side of the scan shows {found} magnets, the ring has {expected}")]
+    WrongMagnetCount {
+        side: String,
+        found: usize,
+        expected: usize,
+    },
+    #[error("the magnet at {angle_deg:.1}° on the {side} side cannot be peaked: {why}")]
+    BadPeak {
+        side: String,
+        angle_deg: f64,
+        why: String,
+    },
+    #[error("the fit is poor: {0}")]
+    BadFit(String),
     #[error("cannot read or write the result file {path}: {message}")]
     File { path: String, message: String },
 }
@@ -578,7 +598,7 @@ enum Axis {
 }
 
 /// Least-squares parabola through (x, y) in coordinates relative to `origin`; its vertex if it is a maximum.
-fn parabola_vertex(xs: &[f64], ys: &[f64], origin: f64) -> Option<(f64, f64)> {
+pub(crate) fn parabola_vertex(xs: &[f64], ys: &[f64], origin: f64) -> Option<(f64, f64)> {
     let mut ata = nalgebra::Matrix3::zeros();
     let mut atb = nalgebra::Vector3::zeros();
     for (x, y) in xs.iter().zip(ys) {
@@ -680,7 +700,7 @@ fn flags(
 }
 
 /// Median of a non-empty slice.
-fn median(v: &[f64]) -> f64 {
+pub(crate) fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
     let n = s.len();

@@ -18,6 +18,7 @@
 pub mod abi;
 pub mod machine;
 pub mod pieces;
+pub mod scan;
 pub mod stepper;
 
 use std::ffi::{CStr, c_char, c_int};
@@ -443,4 +444,102 @@ pub unsafe extern "C" fn jointspace_scara_pattern(
     write_message(&pattern.gcode, gcode, gcode_len);
     write_message(&csv, template, template_len);
     pattern.poses.len() as c_int
+}
+
+/// The centre scan's passes for `settings`: their arm readings in the order to run them (into `arms`, up to
+/// `max`), and how far past a full revolution each pass turns the bed at both ends (rad, into `bed_overlap`).
+/// Returns the number of passes, −1 with the reason in `error` if the settings make no scan, −2 if `max` is
+/// too small.
+///
+/// # Safety
+/// `settings` points to a `struct jointspace_hall_scan`; `arms` holds `max` doubles; `bed_overlap` one double;
+/// `error` holds `error_len` bytes (or is null).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_scan_passes(
+    settings: *const scan::HallScanSettings,
+    arms: *mut f64,
+    max: c_int,
+    bed_overlap: *mut f64,
+    error: *mut c_char,
+    error_len: usize,
+) -> c_int {
+    // SAFETY: per the contract (null is refused).
+    let Some(settings) = (unsafe { settings.as_ref() }) else {
+        return -1;
+    };
+    let sweep = settings.sweep();
+    let passes = match calibrate::sweep::pass_arms(&sweep) {
+        Ok(p) => p,
+        Err(e) => {
+            write_message(&e.to_string(), error, error_len);
+            return -1;
+        }
+    };
+    if passes.len() > usize::try_from(max).unwrap_or(0) {
+        return -2;
+    }
+    for (i, arm) in passes.iter().enumerate() {
+        // SAFETY: i < max, and arms holds max doubles.
+        unsafe { *arms.add(i) = *arm };
+    }
+    // SAFETY: per the contract.
+    unsafe { *bed_overlap = sweep.bed_overlap() };
+    passes.len() as c_int
+}
+
+/// The centre from a sweep's ADC reports: `samples` holds `count` rows of (pass, arm mm, bed rad, ADC value 0..1).
+/// On success writes dx, dy and their standard errors into `result[0..4]`, the detections file (the format of
+/// `jointspace calibrate centre --scan`) into `csv` and a summary into `report`, and returns 0. Returns −1 with the
+/// reason in `report` when the scan is refused (nothing to store), −2 if a buffer is too small.
+///
+/// # Safety
+/// `settings` points to a `struct jointspace_hall_scan`; `samples` holds `4 · count` doubles; `result` four
+/// doubles; `csv` and `report` hold `csv_len` and `report_len` bytes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_scan_centre(
+    settings: *const scan::HallScanSettings,
+    samples: *const f64,
+    count: usize,
+    result: *mut f64,
+    csv: *mut c_char,
+    csv_len: usize,
+    report: *mut c_char,
+    report_len: usize,
+) -> c_int {
+    // SAFETY: per the contract (null is refused).
+    let Some(settings) = (unsafe { settings.as_ref() }) else {
+        return -1;
+    };
+    let rows = if samples.is_null() || count == 0 {
+        &[][..]
+    } else {
+        // SAFETY: per the contract, samples holds 4 · count doubles.
+        unsafe { std::slice::from_raw_parts(samples, 4 * count) }
+    };
+    let accepted = scan::samples_from_rows(rows).and_then(|s| scan::scan_centre(settings, &s));
+    let scan = match accepted {
+        Ok(scan) => scan,
+        Err(e) => {
+            write_message(&e.to_string(), report, report_len);
+            return -1;
+        }
+    };
+    let summary = scan::summary(&scan.result);
+    if scan.detections_csv.len() >= csv_len || summary.len() >= report_len {
+        return -2;
+    }
+    write_message(&scan.detections_csv, csv, csv_len);
+    write_message(&summary, report, report_len);
+    let r = &scan.result;
+    let values = [
+        r.arm_zero_offset,
+        r.arm_lateral_offset,
+        r.sigma_arm_zero_offset,
+        r.sigma_arm_lateral_offset,
+    ];
+    for (i, v) in values.into_iter().enumerate() {
+        // SAFETY: per the contract, result holds four doubles.
+        unsafe { *result.add(i) = v };
+    }
+    0
 }

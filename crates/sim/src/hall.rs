@@ -85,7 +85,7 @@ impl Default for Ky024 {
 }
 
 impl Ky024 {
-    fn max_code(&self) -> f64 {
+    pub fn max_code(&self) -> f64 {
         f64::from((1u32 << self.adc_bits) - 1)
     }
 
@@ -287,6 +287,89 @@ impl HallScanner {
     }
 }
 
+/// How the simulated printer runs a continuous sweep (`calibrate::sweep`): each pass turns the bed from
+/// `-overlap` to `TAU + overlap` (alternating direction) with a trapezoidal speed profile while the ADC reports
+/// every `sample_time`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweepMotion {
+    /// Bed speed (rad/s) and acceleration (rad/s²).
+    pub bed_speed: f64,
+    pub bed_accel: f64,
+    /// Extra turn at both ends of a pass (rad), for the speed ramps.
+    pub overlap: f64,
+    /// Time between ADC reports (s).
+    pub sample_time: f64,
+}
+
+impl HallScanner {
+    /// The ADC code of one noisy reading.
+    fn noisy_code(&mut self) -> u32 {
+        let b = self.true_field() + self.noise.sample(&mut self.rng);
+        self.cfg.sensor.code(b)
+    }
+
+    /// One ADC report as Klipper hands it on: the code as a fraction of full scale.
+    pub fn read_adc(&mut self) -> f64 {
+        f64::from(self.noisy_code()) / self.cfg.sensor.max_code()
+    }
+
+    /// Runs a sweep pass by pass: the ADC reports at a steady rate from the start (one clock for the whole
+    /// sweep), and each report carries the motors' step-quantised readings at its time, as a printer's stepper
+    /// position history gives them.
+    pub fn sweep(
+        &mut self,
+        arms: &[f64],
+        motion: SweepMotion,
+    ) -> Result<Vec<calibrate::sweep::SweepSample>, HardwareError> {
+        let turn = TAU + 2.0 * motion.overlap;
+        let duration = calibrate::scan::trapezoid_time(turn, motion.bed_speed, motion.bed_accel);
+        let mut samples = Vec::new();
+        let mut clock = 0.0;
+        for (pass, &arm) in arms.iter().enumerate() {
+            self.move_arm(arm)?;
+            let (from, sign) = if pass % 2 == 0 {
+                (-motion.overlap, 1.0)
+            } else {
+                (TAU + motion.overlap, -1.0)
+            };
+            let start = clock;
+            let mut k = (start / motion.sample_time).ceil();
+            while k * motion.sample_time <= start + duration {
+                let t = k * motion.sample_time - start;
+                let travelled = trapezoid_position(t, turn, motion.bed_speed, motion.bed_accel);
+                self.turn_bed(from + sign * travelled)?;
+                let (arm, bed) = self.position();
+                let adc = self.read_adc();
+                samples.push(calibrate::sweep::SweepSample {
+                    pass,
+                    arm,
+                    bed,
+                    adc,
+                });
+                k += 1.0;
+            }
+            // The arm's move to the next pass takes some time too.
+            clock = start + duration + 0.5;
+        }
+        Ok(samples)
+    }
+}
+
+/// Distance travelled at time `t` of a rest-to-rest trapezoidal move of length `d`.
+fn trapezoid_position(t: f64, d: f64, v: f64, a: f64) -> f64 {
+    let v = v.min((d * a).sqrt());
+    let ramp = v / a;
+    let total = calibrate::scan::trapezoid_time(d, v, a);
+    if t <= ramp {
+        0.5 * a * t * t
+    } else if t >= total - ramp {
+        let left = (total - t).max(0.0);
+        d - 0.5 * a * left * left
+    } else {
+        0.5 * a * ramp * ramp + v * (t - ramp)
+    }
+}
+
 impl ScanHardware for HallScanner {
     fn move_arm(&mut self, r: f64) -> Result<(), HardwareError> {
         if !r.is_finite() || r < self.cfg.arm_min || r > self.cfg.arm_max {
@@ -308,8 +391,8 @@ impl ScanHardware for HallScanner {
     }
 
     fn read_sensor(&mut self) -> Result<f64, HardwareError> {
-        let b = self.true_field() + self.noise.sample(&mut self.rng);
-        Ok(self.cfg.sensor.field(self.cfg.sensor.code(b)))
+        let code = self.noisy_code();
+        Ok(self.cfg.sensor.field(code))
     }
 
     fn position(&self) -> (f64, f64) {

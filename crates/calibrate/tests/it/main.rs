@@ -4,3 +4,4 @@
 mod centre_scan;
 mod circle_fits;
 mod scara_ident;
+mod sweep_scan;

@@ -53,15 +53,19 @@ fn install_and_uninstall(host: &str, module_folder: &str) {
     git(&tree, &["commit", "-qm", "pristine"]);
 
     install(&tree, false);
-    let link = tree.join(module_folder).join("jointspace.py");
-    let target = std::fs::read_link(&link).expect("the module is a symlink");
-    assert_eq!(
-        target.canonicalize().expect("link target"),
-        workspace_root()
-            .join("klipper/jointspace.py")
-            .canonicalize()
-            .expect("module")
-    );
+    let modules = ["jointspace.py", "jointspace_scan.py"];
+    for module in modules {
+        let link = tree.join(module_folder).join(module);
+        let target = std::fs::read_link(&link).expect("the module is a symlink");
+        assert_eq!(
+            target.canonicalize().expect("link target"),
+            workspace_root()
+                .join("klipper")
+                .join(module)
+                .canonicalize()
+                .expect("module")
+        );
+    }
     // Python leaves a compiled copy beside the link when the host imports it.
     let cache = tree.join(module_folder).join("__pycache__");
     std::fs::create_dir_all(&cache).expect("cache folder");
@@ -73,13 +77,22 @@ fn install_and_uninstall(host: &str, module_folder: &str) {
     );
     install(&tree, false); // twice: still one line each in the exclude file
     let exclude = std::fs::read_to_string(tree.join(".git/info/exclude")).expect("exclude");
-    assert_eq!(exclude.matches("jointspace.py").count(), 1, "{exclude}");
+    for module in modules {
+        assert_eq!(
+            exclude.matches(&format!("/{module}")).count(),
+            1,
+            "{exclude}"
+        );
+    }
 
     install(&tree, true);
-    assert!(
-        !link.exists() && link.symlink_metadata().is_err(),
-        "{host}: module left behind"
-    );
+    for module in modules {
+        let link = tree.join(module_folder).join(module);
+        assert!(
+            !link.exists() && link.symlink_metadata().is_err(),
+            "{host}: {module} left behind"
+        );
+    }
     assert!(!cache.join("jointspace.cpython-311.pyc").exists());
     assert_eq!(
         git(&tree, &["status", "--porcelain"]),

@@ -6,6 +6,7 @@
 #![allow(unsafe_code)]
 
 mod calibration;
+mod centre_scan;
 mod engine;
 mod examples;
 mod homing;

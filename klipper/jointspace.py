@@ -10,6 +10,7 @@
 # machine itself (geometry, offsets, limits, reach) lives in libjointspace_klipper.so, built from the same
 # printer.cfg keys the jointspace command line reads; Klipper's itersolve calls that library for every step.
 import contextlib
+import importlib.util
 import inspect
 import logging
 import math
@@ -24,12 +25,20 @@ else:
     import chelper
     import stepper
 
-try:
-    from . import jointspace_scan
-except ImportError:  # loaded outside a package
-    import jointspace_scan
-
 HERE = os.path.dirname(os.path.realpath(__file__))
+
+
+def _load_sibling(name):
+    # By path: the hosts load this file under different package names (Kalico's plugins as klippy.extras.*),
+    # so a relative import would look in the wrong package.
+    spec = importlib.util.spec_from_file_location(name, os.path.join(HERE, name + ".py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+jointspace_scan = _load_sibling("jointspace_scan")
+
 LIBRARY_NAME = "libjointspace_klipper.so"
 ERROR_LEN = 512
 

@@ -49,6 +49,23 @@ pub enum MotorMap {
     General,
 }
 
+/// A polar bed's rotation centre: the one point where the bed angle is undefined.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RotationCentre {
+    /// Where it lies, in toolhead coordinates (mm).
+    pub point: [f64; 2],
+    /// A path that comes this close (mm) meets the centre: it is planned through the centre itself, where the
+    /// bed turns in place. Half an arm step (the arm cannot tell such points from the centre), at most
+    /// [`PATH_TOLERANCE`] (the nozzle's largest deviation from the path).
+    pub tolerance: f64,
+    /// The bed motor's index.
+    pub bed: usize,
+}
+
+/// The largest deviation from the G-code path that jointspace allows itself anywhere (mm): at the polar centre,
+/// and by default in conversions.
+pub const PATH_TOLERANCE: f64 = 0.005;
+
 /// Why a point or a segment cannot be reached.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReachError {
@@ -149,6 +166,11 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// Checks a whole straight segment from `a` to `b`, not just its end points: minimum radius, reach,
     /// singular poses and joint limits along the way.
     fn check_segment(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError>;
+
+    /// The point where a bed angle is undefined, for machines that have one (an ideal polar machine).
+    fn rotation_centre(&self) -> Option<RotationCentre> {
+        None
+    }
 
     /// Checks one point against everything [`Self::check_segment`] checks (soft limits included).
     ///

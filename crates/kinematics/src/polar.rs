@@ -24,16 +24,14 @@ use crate::common::{
     first_failure, lerp, motor_from, unwrap_near,
 };
 use crate::{
-    Kinematics, Motor, MotorMap, MotorUnit, ParamError, PolarParams, ReachError, SegmentError, Vec3,
+    Kinematics, Motor, MotorMap, MotorUnit, PATH_TOLERANCE, ParamError, PolarParams, ReachError,
+    RotationCentre, SegmentError, Vec3,
 };
 
 /// Motor order: bed (rad), arm (mm), z (mm).
 pub const BED: usize = 0;
 pub const ARM: usize = 1;
 pub const Z: usize = 2;
-
-/// A segment passing closer than this (mm) to the centre of an ideal machine goes through it.
-pub const CENTRE_TOLERANCE: f64 = 1e-9;
 
 #[derive(Debug, Clone)]
 pub struct Polar {
@@ -68,6 +66,11 @@ impl Polar {
             arm_zero_offset: self.params.arm_zero_offset,
             arm_lateral_offset: self.params.arm_lateral_offset,
         }
+    }
+
+    /// How close (mm) a path must come to the centre to meet it: see [`RotationCentre::tolerance`].
+    pub fn centre_tolerance(&self) -> f64 {
+        (0.5 * self.params.arm.step_distance).min(PATH_TOLERANCE)
     }
 
     fn bed_and_arm(&self, x: f64, y: f64) -> Result<(f64, f64), ReachError> {
@@ -110,6 +113,16 @@ impl Kinematics for Polar {
             },
             _ => MotorMap::General,
         }
+    }
+
+    fn rotation_centre(&self) -> Option<RotationCentre> {
+        // Only the ideal machine: with the arm's line beside the centre the centre is out of reach, and with
+        // either offset the bed has no closed form to turn in place with (its moves are refused at the centre).
+        self.is_ideal().then(|| RotationCentre {
+            point: [0.0, 0.0],
+            tolerance: self.centre_tolerance(),
+            bed: BED,
+        })
     }
 
     fn inverse(&self, p: Vec3, motors: &mut [f64]) -> Result<(), ReachError> {
@@ -192,9 +205,10 @@ impl Kinematics for Polar {
         let near = lerp(a, b, t_near);
         // Passing through the centre needs the bed to turn half a revolution there; the planner splits such
         // moves at the centre, so only a segment that crosses it (not one that ends or starts on it) fails.
-        let off_centre = |p: Vec3| p[0] * p[0] + p[1] * p[1] > CENTRE_TOLERANCE * CENTRE_TOLERANCE;
+        let tolerance = self.centre_tolerance();
+        let off_centre = |p: Vec3| p[0] * p[0] + p[1] * p[1] > tolerance * tolerance;
         let crosses = off_centre(a) && off_centre(b);
-        if self.params.arm_lateral_offset == 0.0 && d_near <= CENTRE_TOLERANCE && crosses {
+        if self.params.arm_lateral_offset == 0.0 && d_near <= tolerance && crosses {
             return Err(SegmentError {
                 t: t_near,
                 reason: ReachError::AtCentre {

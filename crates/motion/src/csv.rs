@@ -116,6 +116,7 @@ pub fn parse_row(line: &str) -> Option<(Queue, TrapezoidMove)> {
             start_v: v[10],
             cruise_v: v[11],
             accel: v[12],
+            motion: trapq::Motion::Travel,
         },
     ))
 }

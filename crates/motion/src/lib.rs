@@ -5,6 +5,7 @@
 //! about 1e-15 relative (checked against `../shared/golden`). Kinematic checks use the whole segment.
 
 pub mod arcs;
+mod centre;
 pub mod csv;
 pub mod driver;
 pub mod kinematic_limits;

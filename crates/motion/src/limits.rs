@@ -41,11 +41,14 @@ pub struct ExtruderLimits {
     pub instantaneous_corner_velocity: f64,
 }
 
-/// How a polar bed turns half a revolution when a move crosses its centre (the bed angle flips there).
+/// How a polar bed turns in place at its centre, where a path that meets the centre changes the bed angle
+/// (half a revolution for a path straight through it).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CentreTurn {
     /// The rotation centre (mm).
     pub centre: [f64; 2],
+    /// A path this close to the centre (mm) is planned through it (the kinematics' `RotationCentre::tolerance`).
+    pub tolerance: f64,
     /// Angular speed and acceleration of the turn (rad/s, rad/s²).
     pub max_velocity: f64,
     pub max_accel: f64,

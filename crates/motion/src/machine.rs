@@ -7,7 +7,7 @@ use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::toolhead::{SlowMoves, Toolhead};
 use config::{KinematicsKind, MachineConfig};
 use gcode::{Commands, GcodeError};
-use kinematics::{Kinematics, MotorMap};
+use kinematics::Kinematics;
 use std::io::BufRead;
 use trapq::MoveSink;
 
@@ -123,17 +123,15 @@ fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit
 /// A polar bed's half turn at the centre: its configured angular limits, or else the speed and acceleration that
 /// move the bed's rim (the arm's reach) at `max_velocity` and `max_accel`.
 fn centre_turn(machine: &MachineConfig, kin: &dyn Kinematics) -> Option<CentreTurn> {
-    let bed = kin.motors().iter().position(|m| m.name == "stepper_bed")?;
-    let MotorMap::Angle { centre } = kin.motor_map(bed) else {
-        return None;
-    };
+    let centre = kin.rotation_centre()?;
     let radius = machine
         .stepper("stepper_arm")
         .and_then(|s| s.position_max)
         .filter(|r| *r > 0.0)?;
     let l = &machine.limits;
     Some(CentreTurn {
-        centre,
+        centre: centre.point,
+        tolerance: centre.tolerance,
         max_velocity: l.max_angular_velocity.unwrap_or(l.max_velocity / radius),
         max_accel: l.max_angular_accel.unwrap_or(l.max_accel / radius),
     })

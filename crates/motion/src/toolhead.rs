@@ -1,11 +1,12 @@
 //! The toolhead: accepts moves, checks them, runs the lookahead and appends planned moves to the sink with
 //! their print times, the way Klipper's toolhead does in batch mode.
 
+use crate::centre::{self, Passage};
 use crate::kinematic_limits;
 use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::lookahead::{BUFFER_TIME_HIGH, LookAhead, Move};
 use kinematics::{Kinematics, SegmentError};
-use trapq::{MoveSink, Queue, TrapezoidMove};
+use trapq::{Motion, MoveSink, Queue, TrapezoidMove};
 
 /// Step generation lags at least this far behind "now" (Klipper's `MIN_KIN_TIME`).
 const MIN_KIN_TIME: f64 = 0.100;
@@ -86,6 +87,9 @@ pub struct Toolhead<'k, S: MoveSink> {
     /// Print time above which the next move checks for a pause (Klipper's `need_check_pause`).
     need_check_pause: f64,
     slow_moves: SlowMoves,
+    /// Polar machines: the bed angle (rad) the motors hold, the angle of the last position off the centre (or
+    /// where the last turn in place left it); on the centre the bed keeps it until it turns.
+    bed_angle: f64,
 }
 
 /// Klipper's motion-queuing bookkeeping: how far step generation has been flushed. In batch mode
@@ -122,6 +126,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             sink,
             lookahead: LookAhead::new(),
             commanded_pos: [0.0; 4],
+            bed_angle: 0.0,
             print_time: 0.0,
             need_prime: true,
         }
@@ -167,17 +172,59 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         if target.iter().any(|v| !v.is_finite()) {
             return Err(MoveError::NotFinite);
         }
+        match self.config.centre_turn {
+            Some(turn) => self.move_by_centre(target, speed, origin, &turn),
+            None => self.move_straight(target, speed, origin),
+        }
+    }
+
+    /// A move on a polar machine: planned through the rotation centre where it comes within the centre's
+    /// tolerance, with the bed turning in place there (see [`centre`]).
+    fn move_by_centre(
+        &mut self,
+        target: [f64; 4],
+        speed: f64,
+        origin: u64,
+        turn: &CentreTurn,
+    ) -> Result<(), MoveError> {
+        let start = self.commanded_pos;
+        let target = match centre::passage(start, target, turn) {
+            Passage::Away => target,
+            Passage::Arrives => centre::onto_centre(target, turn),
+            Passage::Stays => {
+                self.commanded_pos = centre::onto_centre(start, turn);
+                centre::onto_centre(target, turn)
+            }
+            Passage::Leaves => {
+                self.commanded_pos = centre::onto_centre(start, turn);
+                if let Some(leaving) = centre::bed_angle(target, turn) {
+                    self.turn_bed_at_centre(centre::turn_between(self.bed_angle, leaving), turn);
+                }
+                target
+            }
+            Passage::Through(point) => {
+                self.move_by_centre(point, speed, origin, turn)?;
+                return self.move_by_centre(target, speed, origin, turn);
+            }
+        };
+        self.move_straight(target, speed, origin)?;
+        if let Some(angle) = centre::bed_angle(self.commanded_pos, turn) {
+            self.bed_angle = angle;
+        }
+        Ok(())
+    }
+
+    /// A straight move, cut into spans where motor limits bind.
+    fn move_straight(
+        &mut self,
+        target: [f64; 4],
+        speed: f64,
+        origin: u64,
+    ) -> Result<(), MoveError> {
         let start = self.commanded_pos;
         let Some(whole) = Move::new(start, target, speed, &self.limits, origin) else {
             return Ok(());
         };
-        if let Some(turn) = self.config.centre_turn
-            && let Some(centre_point) = centre_crossing(&whole, turn.centre)
-        {
-            self.move_to(centre_point, speed, origin)?;
-            self.turn_bed_at_centre(&turn);
-            return self.move_to(target, speed, origin);
-        }
         if whole.is_kinematic {
             self.check_reach(&whole)?;
         }
@@ -263,28 +310,23 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         }
     }
 
-    /// At the polar centre the bed angle flips by π: come to rest there (a full flush), turn the bed half a
-    /// revolution within its limits, and go on. The turn is handed over as a toolhead piece with no direction
-    /// whose distance is the turn angle (rad); step generation turns the bed through it.
-    fn turn_bed_at_centre(&mut self, turn: &CentreTurn) {
+    /// On the polar centre, before leaving it along another angle than it arrived on: come to rest (a full
+    /// flush) and turn the bed in place by `angle` within its limits (a [`Motion::BedTurn`]).
+    fn turn_bed_at_centre(&mut self, angle: f64, turn: &CentreTurn) {
+        // Below this (rad) the angles differ only by rounding: no turn, no stop.
+        const NO_TURN: f64 = 1e-12;
+        if angle.abs() <= NO_TURN {
+            return;
+        }
         self.flush_lookahead();
         let start = self.last_move_time();
-        let (accel_t, cruise_t, cruise_v) =
-            trapezoid_for_turn(std::f64::consts::PI, turn.max_velocity, turn.max_accel);
-        let mv = TrapezoidMove {
-            print_time: start,
-            accel_t,
-            cruise_t,
-            decel_t: accel_t,
-            start_pos: xyz(self.commanded_pos),
-            axes_r: [0.0; 3],
-            start_v: 0.0,
-            cruise_v,
-            accel: turn.max_accel,
-        };
+        let centre = xyz(self.commanded_pos);
+        let mv = TrapezoidMove::bed_turn(start, centre, angle, turn.max_velocity, turn.max_accel);
+        debug_assert_eq!(mv.motion, Motion::BedTurn);
         self.sink.append(Queue::Toolhead, &mv);
-        let end = start + accel_t + cruise_t + accel_t;
+        let end = start + mv.duration();
         self.print_time = end;
+        self.bed_angle += angle;
         self.note_motion_queued(end);
     }
 
@@ -342,6 +384,11 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let need = self.clock.need_step_gen_time;
         self.advance_flush_time(need, 0.0);
         self.commanded_pos[..3].copy_from_slice(&xyz);
+        if let Some(turn) = self.config.centre_turn
+            && let Some(angle) = centre::bed_angle(self.commanded_pos, &turn)
+        {
+            self.bed_angle = angle;
+        }
         self.sink.set_position(xyz, self.commanded_pos[3]);
     }
 
@@ -493,6 +540,7 @@ fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
                 start_v: plan.start_v,
                 cruise_v: plan.cruise_v,
                 accel: mv.accel,
+                motion: Motion::Travel,
             },
         );
     }
@@ -512,58 +560,9 @@ fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
                 start_v: plan.start_v * e_ratio,
                 cruise_v: plan.cruise_v * e_ratio,
                 accel: mv.accel * e_ratio,
+                motion: Motion::Travel,
             },
         );
-    }
-}
-
-/// Where a straight move crosses the rotation centre (within a nanometre, and not at its ends): the move's
-/// point there, with X/Y exactly on the centre.
-fn centre_crossing(mv: &Move, centre: [f64; 2]) -> Option<[f64; 4]> {
-    const TOLERANCE: f64 = 1e-9;
-    if !mv.is_kinematic {
-        return None;
-    }
-    let (a, b) = (mv.start_pos, mv.end_pos);
-    // Squared distances: this runs for every move, and `hypot` is slow.
-    let off = |p: [f64; 4]| {
-        let (x, y) = (p[0] - centre[0], p[1] - centre[1]);
-        x * x + y * y > TOLERANCE * TOLERANCE
-    };
-    let d = [b[0] - a[0], b[1] - a[1]];
-    let len2 = d[0] * d[0] + d[1] * d[1];
-    if !off(a) || !off(b) || len2 == 0.0 {
-        return None;
-    }
-    let t = -((a[0] - centre[0]) * d[0] + (a[1] - centre[1]) * d[1]) / len2;
-    if !(0.0..=1.0).contains(&t) {
-        return None;
-    }
-    let near = [a[0] + d[0] * t - centre[0], a[1] + d[1] * t - centre[1]];
-    if near[0] * near[0] + near[1] * near[1] > TOLERANCE * TOLERANCE {
-        return None;
-    }
-    Some([
-        centre[0],
-        centre[1],
-        a[2] + (b[2] - a[2]) * t,
-        a[3] + (b[3] - a[3]) * t,
-    ])
-}
-
-/// Accelerate, cruise and decelerate through `angle` within `max_velocity` and `max_accel`:
-/// (acceleration time = deceleration time, cruise time, peak speed).
-fn trapezoid_for_turn(angle: f64, max_velocity: f64, max_accel: f64) -> (f64, f64, f64) {
-    let ramps = max_velocity * max_velocity / max_accel;
-    if angle >= ramps {
-        (
-            max_velocity / max_accel,
-            (angle - ramps) / max_velocity,
-            max_velocity,
-        )
-    } else {
-        let peak = (angle * max_accel).sqrt();
-        (peak / max_accel, 0.0, peak)
     }
 }
 

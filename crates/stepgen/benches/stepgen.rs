@@ -109,6 +109,7 @@ fn synthetic(start: [f64; 3], centre: [f64; 2]) -> Vec<(Queue, TrapezoidMove)> {
             start_v: v,
             cruise_v: v,
             accel: 0.0,
+            motion: trapq::Motion::Travel,
         };
         moves.push((Queue::Toolhead, mv));
         time += len / v;

@@ -15,7 +15,7 @@
 use std::f64::consts::{PI, TAU};
 
 use kinematics::{Kinematics, MotorMap, Vec3};
-use trapq::Piece;
+use trapq::{Motion, Piece};
 
 use crate::error::StepError;
 use crate::filter::StepFilter;
@@ -477,18 +477,19 @@ impl MotorStepper {
         centre: [f64; 2],
         sink: &mut S,
     ) -> Result<(), StepError> {
+        if piece.motion == Motion::BedTurn {
+            self.turn_span(piece, span, sink);
+            return Ok(());
+        }
         let line = PlaneLine::new(piece, centre);
         if line.uu == 0.0 {
-            if is_turn_in_place(piece, centre) {
-                self.turn_span(piece, span, sink);
-            }
-            // Otherwise no XY motion (a Z move): the angle cannot change, even when parked at the centre.
+            // No XY motion (a Z move): the angle cannot change, even when parked at the centre.
             // Klipper skips such moves for XY steppers too.
             return Ok(());
         }
         let qa = line.point(span.d0);
         let qb = line.point(span.d1);
-        if line.cross == 0.0 {
+        if line.perpendicular_distance() <= RADIAL_ROUNDING {
             return self.radial_span(piece, span, &line, sink);
         }
         let raw = qa[1].atan2(qa[0]);
@@ -513,16 +514,22 @@ impl MotorStepper {
     ) -> Result<(), StepError> {
         let qa = line.point(span.d0);
         let qb = line.point(span.d1);
+        let on_centre = |q: [f64; 2]| q[0].hypot(q[1]) <= RADIAL_ROUNDING;
         let s = line.closest_s();
-        let crosses = qa != [0.0, 0.0] && qb != [0.0, 0.0] && (s - span.d0) * (s - span.d1) < 0.0;
+        let crosses = !on_centre(qa) && !on_centre(qb) && (s - span.d0) * (s - span.d1) < 0.0;
         if crosses {
             return Err(StepError::ThroughCentre {
                 motor: self.spec.name.clone(),
                 time: piece.print_time + span.t0,
             });
         }
-        let off_centre = if qa != [0.0, 0.0] { qa } else { qb };
-        let angle = if off_centre == [0.0, 0.0] {
+        // The end farther from the centre gives the angle (the other may be the centre up to rounding).
+        let off_centre = if qa[0].hypot(qa[1]) >= qb[0].hypot(qb[1]) {
+            qa
+        } else {
+            qb
+        };
+        let angle = if on_centre(off_centre) {
             self.bed_angle
         } else {
             let raw = off_centre[1].atan2(off_centre[0]);
@@ -545,11 +552,11 @@ impl MotorStepper {
     }
 }
 
-/// A toolhead piece with no direction, parked on the rotation centre, stands for the bed turning in place
-/// (see `motion`'s centre crossing): its distance is the turn angle.
-fn is_turn_in_place(piece: &Piece, centre: [f64; 2]) -> bool {
-    piece.axes_r == [0.0; 3] && piece.start_pos[0] == centre[0] && piece.start_pos[1] == centre[1]
-}
+/// A line passing the bed's centre closer than this (mm) is radial: the planner's moves to and from the centre
+/// are exactly radial, and their pieces, positions computed as `start + direction·distance`, miss the centre
+/// only by rounding (about 1e-16 of the coordinates). Any other line stays at least the kinematics' centre
+/// tolerance (micrometres) away.
+const RADIAL_ROUNDING: f64 = 1e-9;
 
 /// Steps handled per batch in [`MotorStepper::steps_towards`].
 const STEP_BATCH: usize = 64;

@@ -111,6 +111,7 @@ pub fn parse_row(line: &str) -> Result<(Queue, TrapezoidMove), (usize, String)> 
         start_v,
         cruise_v,
         accel,
+        motion: trapq::Motion::Travel,
     };
     Ok((queue, mv))
 }

@@ -106,6 +106,7 @@ mod tests {
             half_accel,
             start_pos: [0.0; 3],
             axes_r: [1.0, 0.0, 0.0],
+            motion: trapq::Motion::Travel,
         }
     }
 

@@ -7,10 +7,23 @@
 /// A Cartesian toolhead position or direction, `[x, y, z]` in mm.
 pub type Vec3 = [f64; 3];
 
+/// What a toolhead piece does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Motion {
+    /// The toolhead travels along `axes_r` (Klipper's trapezoid moves are all of this kind).
+    #[default]
+    Travel,
+    /// A polar bed turns in place while the toolhead rests on its rotation centre at `start_pos`: `axes_r` is
+    /// zero and the piece's signed distance is the angle turned (rad, counter-clockwise positive: the bed motor's
+    /// reading grows). The planner emits it where a path meets the centre, where the bed angle is undefined.
+    BedTurn,
+}
+
 /// One constant-acceleration piece of a straight move.
 ///
 /// Distance along the direction after `t` seconds (0 ≤ t ≤ `duration`): `(start_v + half_accel·t)·t`;
-/// position: `start_pos + axes_r·distance`.
+/// position: `start_pos + axes_r·distance`. A [`Motion::BedTurn`] piece does not move the toolhead; its distance
+/// is the bed's turn.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Piece {
     /// Absolute print time (s) at which the piece starts.
@@ -23,8 +36,9 @@ pub struct Piece {
     pub half_accel: f64,
     /// Position (mm) at the start of the piece.
     pub start_pos: Vec3,
-    /// Unit direction of the move (or, for the extruder queue, `[1, 0, 0]`).
+    /// Unit direction of the move (or, for the extruder queue, `[1, 0, 0]`); zero for a bed turn.
     pub axes_r: Vec3,
+    pub motion: Motion,
 }
 
 impl Piece {
@@ -70,9 +84,47 @@ pub struct TrapezoidMove {
     pub start_v: f64,
     pub cruise_v: f64,
     pub accel: f64,
+    pub motion: Motion,
 }
 
 impl TrapezoidMove {
+    /// A polar bed turning in place by `angle` (rad, counter-clockwise positive) while the toolhead rests at
+    /// `centre`, from rest to rest within `max_velocity` and `max_accel` (rad/s, rad/s²): accelerate, cruise
+    /// if the angle leaves room, decelerate.
+    pub fn bed_turn(
+        print_time: f64,
+        centre: Vec3,
+        angle: f64,
+        max_velocity: f64,
+        max_accel: f64,
+    ) -> TrapezoidMove {
+        let size = angle.abs();
+        let ramps = max_velocity * max_velocity / max_accel;
+        let (accel_t, cruise_t, peak) = if size >= ramps {
+            (
+                max_velocity / max_accel,
+                (size - ramps) / max_velocity,
+                max_velocity,
+            )
+        } else {
+            let peak = (size * max_accel).sqrt();
+            (peak / max_accel, 0.0, peak)
+        };
+        let sign = if angle < 0.0 { -1.0 } else { 1.0 };
+        TrapezoidMove {
+            print_time,
+            accel_t,
+            cruise_t,
+            decel_t: accel_t,
+            start_pos: centre,
+            axes_r: [0.0; 3],
+            start_v: 0.0,
+            cruise_v: sign * peak,
+            accel: sign * max_accel,
+            motion: Motion::BedTurn,
+        }
+    }
+
     /// Split into up to three pieces, skipping zero-length phases, the way Klipper's `trapq_append` does:
     /// each later piece starts at the position reached at the end of the previous one.
     pub fn pieces(&self) -> Pieces<'_> {
@@ -124,6 +176,7 @@ impl Iterator for Pieces<'_> {
                 half_accel,
                 start_pos: self.start_pos,
                 axes_r: mv.axes_r,
+                motion: mv.motion,
             };
             self.print_time += duration;
             self.start_pos = piece.position(duration);
@@ -219,6 +272,7 @@ mod tests {
             start_v: 0.0,
             cruise_v: 10.0,
             accel: 20.0,
+            motion: Motion::Travel,
         };
         let pieces: Vec<Piece> = mv.pieces().collect();
         assert_eq!(pieces.len(), 2);
@@ -229,5 +283,23 @@ mod tests {
         assert_eq!(pieces[1].half_accel, -10.0);
         assert_eq!(pieces[1].position(0.5), [5.0, 0.0, 0.0]);
         assert_eq!(pieces[1].velocity(0.5), 0.0);
+    }
+
+    #[test]
+    fn a_bed_turn_covers_its_signed_angle_from_rest_to_rest_within_its_limits() {
+        for (angle, omega, alpha) in [(3.0, 5.0, 200.0), (-1.5, 5.0, 10.0), (0.01, 5.0, 200.0)] {
+            let mv = TrapezoidMove::bed_turn(2.0, [0.0; 3], angle, omega, alpha);
+            let pieces: Vec<Piece> = mv.pieces().collect();
+            let turned: f64 = pieces.iter().map(|p| p.distance(p.duration)).sum();
+            assert!((turned - angle).abs() < 1e-12, "{turned} vs {angle}");
+            let last = pieces.last().expect("pieces");
+            assert!(last.velocity(last.duration).abs() < 1e-12);
+            assert!(pieces.iter().all(|p| p.motion == Motion::BedTurn));
+            assert!(mv.cruise_v.abs() <= omega && mv.accel.abs() == alpha);
+            assert_eq!(mv.start_pos, [0.0; 3]);
+        }
+        // Without room to cruise the turn is a triangle: 2·√(θ/α).
+        let mv = TrapezoidMove::bed_turn(0.0, [0.0; 3], 0.01, 5.0, 200.0);
+        assert!((mv.duration() - 2.0 * (0.01f64 / 200.0).sqrt()).abs() < 1e-12);
     }
 }

@@ -19,6 +19,7 @@ fn cruise(print_time: f64, duration: f64, start: [f64; 3], dir: [f64; 3], v: f64
         start_v: v,
         cruise_v: v,
         accel: 0.0,
+        motion: trapq::Motion::Travel,
     }
 }
 
@@ -85,6 +86,7 @@ fn accelerating_from_rest_follows_square_root_law() {
         start_v: 0.0,
         cruise_v: 100.0,
         accel: 1000.0,
+        motion: trapq::Motion::Travel,
     };
     let steps = run(kin.as_ref(), [0.0; 3], &[(Queue::Toolhead, mv)]).expect("steps");
     let expected: Vec<(f64, bool)> = (0..400)
@@ -194,6 +196,7 @@ fn scara_joint_steps_are_exact_crossings() {
         start_v: 0.0,
         cruise_v: 100.0,
         accel: 2000.0,
+        motion: trapq::Motion::Travel,
     };
     let pieces: Vec<Piece> = mv.pieces().collect();
     let steps = run(kin.as_ref(), start, &[(Queue::Toolhead, mv)]).expect("steps");

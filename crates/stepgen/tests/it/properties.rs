@@ -37,6 +37,7 @@ fn trapezoid(
         start_v: v0,
         cruise_v: peak,
         accel,
+        motion: trapq::Motion::Travel,
     }
 }
 

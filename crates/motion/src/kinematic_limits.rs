@@ -207,7 +207,16 @@ impl Profile {
             }
             MotorMap::Angle { centre } => {
                 let (s_star, d, xy) = line.closest_approach(centre);
-                Profile::Angle { s_star, d, xy }
+                // The planner's moves to and from the centre are radial (the bed angle is constant along them);
+                // their direction misses the centre only by rounding, which must not read as a sharp pass.
+                let radial = kin
+                    .rotation_centre()
+                    .is_some_and(|c| d.abs() <= c.tolerance);
+                if radial {
+                    Profile::Linear { rate: 0.0 }
+                } else {
+                    Profile::Angle { s_star, d, xy }
+                }
             }
             MotorMap::General => Profile::General { motor },
         }

@@ -5,12 +5,12 @@ use motion::machine::{MachineSetup, plan_gcode};
 use stepgen::{Step, StepGenConfig, StepGenerator};
 use trapq::{Piece, Queue, TrapezoidMove};
 
-const MAX_OMEGA: f64 = 5.0; // rad/s
-const MAX_ALPHA: f64 = 200.0; // rad/s²
+pub(crate) const MAX_OMEGA: f64 = 5.0; // rad/s
+pub(crate) const MAX_ALPHA: f64 = 200.0; // rad/s²
 const MAX_VELOCITY: f64 = 300.0;
-const CLOCK_HZ: f64 = 16e6;
+pub(crate) const CLOCK_HZ: f64 = 16e6;
 
-fn polar_config() -> String {
+pub(crate) fn polar_config() -> String {
     format!(
         "[stepper_bed]\nstep_pin: PF0\ndir_pin: PF1\nmicrosteps: 16\ngear_ratio: 80:16\n\
          [stepper_arm]\nstep_pin: PF6\ndir_pin: PF7\nmicrosteps: 16\nrotation_distance: 40\nendstop_pin: ^PJ1\n\
@@ -23,7 +23,7 @@ fn polar_config() -> String {
 }
 
 /// Plan `gcode` on the machine `config` and generate every motor's steps; the toolhead moves and the steps.
-fn plan_and_step(config: &str, gcode: &str) -> (Vec<TrapezoidMove>, Vec<Vec<Step>>) {
+pub(crate) fn plan_and_step(config: &str, gcode: &str) -> (Vec<TrapezoidMove>, Vec<Vec<Step>>) {
     let machine = config::MachineConfig::from_str(config, "printer.cfg").expect("config loads");
     let setup = MachineSetup::from_config(&machine).expect("machine builds");
     let mut moves = Vec::new();
@@ -61,7 +61,7 @@ fn pass(offset: f64, speed: f64) -> (Vec<TrapezoidMove>, Vec<Step>) {
 
 /// Peak speed and acceleration of a motor from its step times: speed over windows of `w` steps, and
 /// acceleration from the speeds of consecutive windows (so clock quantisation stays far below 1%).
-fn peak_rates(steps: &[Step], step_dist: f64) -> (f64, f64) {
+pub(crate) fn peak_rates(steps: &[Step], step_dist: f64) -> (f64, f64) {
     let t: Vec<f64> = steps.iter().map(|s| s.clock as f64 / CLOCK_HZ).collect();
     let w = 16;
     let mut omegas = Vec::new();

@@ -66,6 +66,12 @@ pub struct RotationCentre {
 /// and by default in conversions.
 pub const PATH_TOLERANCE: f64 = 0.005;
 
+/// A line that passes a polar centre closer than this (mm) runs along a radius: the planner's moves to and from
+/// the centre are exactly radial, and positions computed along them (`start + direction·distance`) miss the centre
+/// only by rounding (about 1e-16 of the coordinates). Every other line the planner makes stays at least the centre's
+/// tolerance away.
+pub const RADIAL_ROUNDING: f64 = 1e-9;
+
 /// Why a point or a segment cannot be reached.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReachError {

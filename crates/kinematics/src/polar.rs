@@ -24,8 +24,8 @@ use crate::common::{
     first_failure, lerp, motor_from, unwrap_near,
 };
 use crate::{
-    Kinematics, Motor, MotorMap, MotorUnit, PATH_TOLERANCE, ParamError, PolarParams, ReachError,
-    RotationCentre, SegmentError, Vec3,
+    Kinematics, Motor, MotorMap, MotorUnit, PATH_TOLERANCE, ParamError, PolarParams,
+    RADIAL_ROUNDING, ReachError, RotationCentre, SegmentError, Vec3,
 };
 
 /// Motor order: bed (rad), arm (mm), z (mm).
@@ -205,10 +205,12 @@ impl Kinematics for Polar {
         let near = lerp(a, b, t_near);
         // Passing through the centre needs the bed to turn half a revolution there; the planner splits such
         // moves at the centre, so only a segment that crosses it (not one that ends or starts on it) fails.
-        let tolerance = self.centre_tolerance();
-        let off_centre = |p: Vec3| p[0] * p[0] + p[1] * p[1] > tolerance * tolerance;
+        // Only a segment that runs over the centre itself (up to rounding) has no bed angle there; one that
+        // passes within the centre's tolerance is routed through it by the planner, or turned round it by the
+        // Klipper plug-in's move transform.
+        let off_centre = |p: Vec3| p[0] * p[0] + p[1] * p[1] > RADIAL_ROUNDING * RADIAL_ROUNDING;
         let crosses = off_centre(a) && off_centre(b);
-        if self.params.arm_lateral_offset == 0.0 && d_near <= tolerance && crosses {
+        if self.params.arm_lateral_offset == 0.0 && d_near <= RADIAL_ROUNDING && crosses {
             return Err(SegmentError {
                 t: t_near,
                 reason: ReachError::AtCentre {

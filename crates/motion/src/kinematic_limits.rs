@@ -7,7 +7,7 @@
 //! motor speed `q'·v ≤ V` and motor acceleration `|q''|·v² + |q'|·|a| ≤ A`. The path is unchanged, and the
 //! lookahead sees ordinary moves meeting at straight (full-speed) junctions.
 
-use kinematics::{Kinematics, MotorMap, Vec3};
+use kinematics::{Kinematics, MotorMap, RADIAL_ROUNDING, Vec3};
 
 /// Limits of one motor, in its own units (mm or rad per second, per second²).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -209,10 +209,7 @@ impl Profile {
                 let (s_star, d, xy) = line.closest_approach(centre);
                 // The planner's moves to and from the centre are radial (the bed angle is constant along them);
                 // their direction misses the centre only by rounding, which must not read as a sharp pass.
-                let radial = kin
-                    .rotation_centre()
-                    .is_some_and(|c| d.abs() <= c.tolerance);
-                if radial {
+                if d.abs() <= RADIAL_ROUNDING {
                     Profile::Linear { rate: 0.0 }
                 } else {
                     Profile::Angle { s_star, d, xy }

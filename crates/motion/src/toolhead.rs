@@ -322,7 +322,6 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let start = self.last_move_time();
         let centre = xyz(self.commanded_pos);
         let mv = TrapezoidMove::bed_turn(start, centre, angle, turn.max_velocity, turn.max_accel);
-        debug_assert_eq!(mv.motion, Motion::BedTurn);
         self.sink.append(Queue::Toolhead, &mv);
         let end = start + mv.duration();
         self.print_time = end;

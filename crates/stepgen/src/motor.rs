@@ -14,7 +14,7 @@
 
 use std::f64::consts::{PI, TAU};
 
-use kinematics::{Kinematics, MotorMap, Vec3};
+use kinematics::{Kinematics, MotorMap, RADIAL_ROUNDING, Vec3};
 use trapq::{Motion, Piece};
 
 use crate::error::StepError;
@@ -551,12 +551,6 @@ impl MotorStepper {
         self.bed_angle = fb;
     }
 }
-
-/// A line passing the bed's centre closer than this (mm) is radial: the planner's moves to and from the centre
-/// are exactly radial, and their pieces, positions computed as `start + direction·distance`, miss the centre
-/// only by rounding (about 1e-16 of the coordinates). Any other line stays at least the kinematics' centre
-/// tolerance (micrometres) away.
-const RADIAL_ROUNDING: f64 = 1e-9;
 
 /// Steps handled per batch in [`MotorStepper::steps_towards`].
 const STEP_BATCH: usize = 64;

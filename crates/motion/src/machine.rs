@@ -77,7 +77,7 @@ impl MachineSetup {
             planner.arc_resolution = arcs.resolution;
         }
         planner.kinematic_limits = motor_limits(machine, kinematics.as_ref());
-        planner.centre_turn = centre_turn(machine, kinematics.as_ref());
+        planner.centre_turn = centre_turn(machine, kinematics.as_ref(), &planner.kinematic_limits);
         let home_position = home_position(machine, kinematics.as_ref())?;
         Ok(MachineSetup {
             kinematics,
@@ -120,20 +120,30 @@ fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit
     limits
 }
 
-/// A polar bed's half turn at the centre: its configured angular limits, or else the speed and acceleration that
-/// move the bed's rim (the arm's reach) at `max_velocity` and `max_accel`.
-fn centre_turn(machine: &MachineConfig, kin: &dyn Kinematics) -> Option<CentreTurn> {
+/// A polar bed's turn in place at the centre: within the bed's motor limits (its angular limits and step rate,
+/// as the planner applies them elsewhere), and without an angular limit at the speed and acceleration that move the
+/// bed's rim (the arm's reach) at `max_velocity` and `max_accel`.
+fn centre_turn(
+    machine: &MachineConfig,
+    kin: &dyn Kinematics,
+    limits: &[MotorLimit],
+) -> Option<CentreTurn> {
     let centre = kin.rotation_centre()?;
     let radius = machine
         .stepper("stepper_arm")
         .and_then(|s| s.position_max)
         .filter(|r| *r > 0.0)?;
     let l = &machine.limits;
+    let bed = limits.iter().find(|m| m.motor == centre.bed);
     Some(CentreTurn {
         centre: centre.point,
         tolerance: centre.tolerance,
-        max_velocity: l.max_angular_velocity.unwrap_or(l.max_velocity / radius),
-        max_accel: l.max_angular_accel.unwrap_or(l.max_accel / radius),
+        max_velocity: bed
+            .and_then(|b| b.max_velocity)
+            .unwrap_or(l.max_velocity / radius),
+        max_accel: bed
+            .and_then(|b| b.max_accel)
+            .unwrap_or(l.max_accel / radius),
     })
 }
 

@@ -198,7 +198,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             Passage::Leaves => {
                 self.commanded_pos = centre::onto_centre(start, turn);
                 if let Some(leaving) = centre::bed_angle(target, turn) {
-                    self.turn_bed_at_centre(centre::turn_between(self.bed_angle, leaving), turn);
+                    let angle = centre::turn_between(self.bed_angle, leaving);
+                    self.turn_bed_at_centre(angle, turn, origin);
                 }
                 target
             }
@@ -312,7 +313,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
 
     /// On the polar centre, before leaving it along another angle than it arrived on: come to rest (a full
     /// flush) and turn the bed in place by `angle` within its limits (a [`Motion::BedTurn`]).
-    fn turn_bed_at_centre(&mut self, angle: f64, turn: &CentreTurn) {
+    fn turn_bed_at_centre(&mut self, angle: f64, turn: &CentreTurn, origin: u64) {
         // Below this (rad) the angles differ only by rounding: no turn, no stop.
         const NO_TURN: f64 = 1e-12;
         if angle.abs() <= NO_TURN {
@@ -322,6 +323,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let start = self.last_move_time();
         let centre = xyz(self.commanded_pos);
         let mv = TrapezoidMove::bed_turn(start, centre, angle, turn.max_velocity, turn.max_accel);
+        self.sink.origin(origin);
         self.sink.append(Queue::Toolhead, &mv);
         let end = start + mv.duration();
         self.print_time = end;
@@ -526,6 +528,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
 /// Hand a planned move's pieces to the sink: the toolhead's, and the extruder's when it extrudes.
 fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
     let plan = mv.plan;
+    sink.origin(mv.origin);
     if mv.is_kinematic {
         sink.append(
             Queue::Toolhead,

@@ -13,6 +13,7 @@
 //! [`StepError::ThroughCentre`] (the bed angle is undefined there; Klipper fails too); passes any distance
 //! away, however small, are solved exactly (bed steps may then share a clock tick).
 
+mod audit;
 mod error;
 mod files;
 mod filter;
@@ -26,6 +27,7 @@ mod stats;
 mod timing;
 mod writer;
 
+pub use audit::{ExpectedTravel, StepAudit, StepProblem, net_agrees};
 pub use error::{MovesCsvError, StepError, StepFileError};
 pub use files::{FileAndStats, finish_step_files, step_file_sinks};
 pub use filter::StepFilter;

@@ -140,6 +140,18 @@ impl TrapezoidMove {
     pub fn duration(&self) -> f64 {
         self.accel_t + self.cruise_t + self.decel_t
     }
+
+    /// Signed distance covered along `axes_r` (a bed turn: the angle turned).
+    pub fn distance(&self) -> f64 {
+        self.pieces().map(|p| p.distance(p.duration)).sum()
+    }
+
+    /// Where the move ends (a bed turn ends where it starts).
+    pub fn end_pos(&self) -> Vec3 {
+        let d = self.distance();
+        let (p, u) = (self.start_pos, self.axes_r);
+        [p[0] + u[0] * d, p[1] + u[1] * d, p[2] + u[2] * d]
+    }
 }
 
 /// The pieces of a [`TrapezoidMove`], made one at a time (no buffer: the planner hands hundreds of
@@ -203,6 +215,10 @@ pub enum Queue {
 pub trait MoveSink {
     /// A planned move was appended to `queue`.
     fn append(&mut self, queue: Queue, mv: &TrapezoidMove);
+    /// The moves appended next come from `origin` (a G-code line), until the next call. Sinks that report
+    /// places keep it; the rest ignore it.
+    #[inline]
+    fn origin(&mut self, _origin: u64) {}
     /// Every move that starts before `print_time` has been appended: consumers may finish work up to it.
     fn flush(&mut self, _print_time: f64) {}
     /// The toolhead was declared to be at `xyz` without moving (homing, `SET_KINEMATIC_POSITION`), after every
@@ -228,6 +244,11 @@ impl<S: MoveSink> MoveSink for Option<S> {
             sink.append(queue, mv);
         }
     }
+    fn origin(&mut self, origin: u64) {
+        if let Some(sink) = self {
+            sink.origin(origin);
+        }
+    }
     fn flush(&mut self, print_time: f64) {
         if let Some(sink) = self {
             sink.flush(print_time);
@@ -245,6 +266,11 @@ impl<A: MoveSink, B: MoveSink> MoveSink for (A, B) {
     fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
         self.0.append(queue, mv);
         self.1.append(queue, mv);
+    }
+    #[inline]
+    fn origin(&mut self, origin: u64) {
+        self.0.origin(origin);
+        self.1.origin(origin);
     }
     fn flush(&mut self, print_time: f64) {
         self.0.flush(print_time);

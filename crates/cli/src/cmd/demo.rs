@@ -100,6 +100,7 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     )
     .map_err(|e| match e {
         run::ExecuteError::Pipeline(e) => run::pipeline_error(&print_path, e),
+        run::ExecuteError::Steps(e) => miette::miette!("{}: {e}", print_path.display()),
         run::ExecuteError::Other(r) => r,
     })?;
     section += &run::render(&summary);

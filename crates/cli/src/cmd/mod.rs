@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+mod audit;
 pub mod calibrate;
 pub mod convert;
 pub mod demo;

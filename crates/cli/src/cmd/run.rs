@@ -7,7 +7,12 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use stepgen::{ExtruderSpec, MotorStats, StepFileWriter, StepGenConfig, StepSink, StepStats};
+use stepgen::{
+    ExpectedTravel, ExtruderSpec, MotorStats, StepAudit, StepFileWriter, StepGenConfig, StepSink,
+    StepStats,
+};
+
+use super::audit::{AuditedMotor, StepStreamError, first_problem, line_at_time, period_of};
 
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
@@ -98,6 +103,7 @@ pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, Machi
 #[derive(Debug)]
 struct MotorSink {
     stats: StepStats,
+    audit: StepAudit,
     file: Option<StepFileWriter>,
 }
 
@@ -105,6 +111,7 @@ impl StepSink for MotorSink {
     #[inline]
     fn step(&mut self, clock: u64, dir: bool) {
         self.stats.step(clock, dir);
+        self.audit.step(clock, dir);
         if let Some(file) = &mut self.file {
             file.step(clock, dir);
         }
@@ -113,6 +120,7 @@ impl StepSink for MotorSink {
     #[inline]
     fn steps(&mut self, clocks: &[u64], dir: bool) {
         self.stats.steps(clocks, dir);
+        self.audit.steps(clocks, dir);
         if let Some(file) = &mut self.file {
             file.steps(clocks, dir);
         }
@@ -217,6 +225,15 @@ pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
                 };
                 (Some(place), message, pipeline_error(&args.file, e))
             }
+            ExecuteError::Steps(e) => {
+                let line = locate_step_problem(&args.config, &args.file, &options, e.time);
+                let place = line.map(|line| (line, 1));
+                (
+                    place,
+                    e.to_string(),
+                    step_stream_error(&args.file, line, &e),
+                )
+            }
             ExecuteError::Other(report) => (None, report.to_string(), report),
         };
         if args.json {
@@ -235,11 +252,60 @@ pub fn run(args: RunArgs) -> miette::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Why [`execute`] failed: a planning error (rendered against the G-code file) or anything else.
+/// Why [`execute`] failed: a planning error (rendered against the G-code file), a step stream no MCU could run,
+/// or anything else.
 #[derive(Debug)]
 pub enum ExecuteError {
     Pipeline(motion::machine::PipelineError),
+    Steps(StepStreamError),
     Other(miette::Report),
+}
+
+/// A stepper's configured step-rate limit (its own, or `[printer]`'s).
+fn max_step_rate(machine: &config::MachineConfig, stepper: &str) -> Option<f64> {
+    machine
+        .stepper(stepper)
+        .and_then(|s| s.max_step_rate)
+        .or(machine.limits.max_step_rate)
+}
+
+/// Every motor's stream through the audit: the first problem, or none.
+fn audit_steps(
+    sinks: &[MotorSink],
+    names: &[String],
+    kin: &dyn kinematics::Kinematics,
+    extruder_step: Option<f64>,
+    (travel, stretches): (Vec<Option<f64>>, u32),
+    clock_hz: f64,
+) -> Result<(), ExecuteError> {
+    let step_distances = kin
+        .motors()
+        .iter()
+        .map(|m| m.step_distance)
+        .chain(extruder_step);
+    let motors: Vec<AuditedMotor> = sinks
+        .iter()
+        .zip(names)
+        .zip(step_distances)
+        .zip(travel)
+        .enumerate()
+        .map(
+            |(i, (((sink, name), step_distance), expected_travel))| AuditedMotor {
+                name,
+                audit: &sink.audit,
+                step_distance,
+                period: period_of(kin, i),
+                expected_travel,
+                stretches,
+                last_time: sink.stats.summary(clock_hz, 0).last_clock.unwrap_or(0) as f64
+                    / clock_hz,
+            },
+        )
+        .collect();
+    match first_problem(&motors, clock_hz) {
+        Some(problem) => Err(ExecuteError::Steps(problem)),
+        None => Ok(()),
+    }
 }
 
 impl From<miette::Report> for ExecuteError {
@@ -291,6 +357,7 @@ pub fn execute(
         };
         sinks.push(MotorSink {
             stats: StepStats::new(options.clock_hz),
+            audit: StepAudit::new(max_step_rate(machine, name), options.clock_hz),
             file,
         });
     }
@@ -304,6 +371,8 @@ pub fn execute(
     };
     // Planning on this thread, stepping on another: they overlap chunk by chunk.
     let kinematics = setup.kinematics.as_ref();
+    let travel = ExpectedTravel::new(kinematics, extruder.is_some());
+    let extruder_step = extruder.as_ref().map(|e| e.step_distance);
     let (planned, sinks, filtered) = stepgen::run_in_parallel(
         kinematics,
         extruder,
@@ -312,12 +381,22 @@ pub fn execute(
         crate::interrupt::requested,
         |sender| {
             // The sender is dropped here, which tells the stepping thread that planning is over.
-            plan_gcode(&setup, input, name, ((sender, MoveCounter::default()), csv))
-                .map(|(((_sender, counter), csv), summary)| (counter, csv, summary))
+            let sink = ((sender, (MoveCounter::default(), travel)), csv);
+            plan_gcode(&setup, input, name, sink).map(
+                |(((_sender, (counter, travel)), csv), summary)| (counter, travel, csv, summary),
+            )
         },
     )
     .map_err(|e| miette::miette!("step generation failed: {e}"))?;
-    let (counter, csv, summary) = planned.map_err(ExecuteError::Pipeline)?;
+    let (counter, travel, csv, summary) = planned.map_err(ExecuteError::Pipeline)?;
+    audit_steps(
+        &sinks,
+        &motor_names,
+        kinematics,
+        extruder_step,
+        travel.finish(),
+        options.clock_hz,
+    )?;
     if let Some(csv) = csv {
         csv.finish()?;
     }
@@ -327,10 +406,7 @@ pub fn execute(
             file.finish().map_err(|e| miette::miette!("{e}"))?;
         }
         let stats: MotorStats = sink.stats.summary(options.clock_hz, filtered_pairs);
-        let limit = machine
-            .stepper(name)
-            .and_then(|s| s.max_step_rate)
-            .or(machine.limits.max_step_rate);
+        let limit = max_step_rate(machine, name);
         motors.push(MotorSummary {
             name: name.clone(),
             steps: stats.steps,
@@ -489,6 +565,75 @@ impl trapq::MoveSink for CsvFile {
     }
 }
 
+/// The G-code line a step problem at print time `time` comes from, planning the file again as `run` did.
+fn locate_step_problem(config: &Path, file: &Path, options: &RunOptions, time: f64) -> Option<u64> {
+    let machine = config::MachineConfig::load(config).ok()?;
+    let mut setup = MachineSetup::from_config(&machine).ok()?;
+    setup.planner.skip_unreachable = options.skip_unreachable;
+    setup.planner.klipper_batch_flush = options.klipper_batch;
+    setup.planner.behave_as(options.host);
+    line_at_time(&setup, file, time)
+}
+
+/// A step stream no MCU could run, as a diagnostic on the G-code line it comes from (when it could be found).
+fn step_stream_error(file: &Path, line: Option<u64>, e: &StepStreamError) -> miette::Report {
+    match line {
+        Some(line) => {
+            let span = gcode::Span {
+                line,
+                column: 1,
+                len: 0,
+            };
+            miette::Report::new(diag::at_gcode_line(
+                file,
+                span,
+                e.to_string(),
+                "the steps of this move".into(),
+            ))
+        }
+        None => miette::miette!("{}: {e}", file.display()),
+    }
+}
+
+/// For `check`: the file's steps generated (not written) and audited as `run` does, so that `check` flags what
+/// `run` would refuse. Standard input cannot be read twice: it is not audited.
+fn audit_file(
+    machine: &config::MachineConfig,
+    args: &CheckArgs,
+    name: &str,
+) -> miette::Result<Option<motion::machine::Problem>> {
+    if args.file == Path::new("-") {
+        return Ok(None);
+    }
+    let options = RunOptions {
+        clock_hz: 16e6,
+        ..RunOptions::default()
+    };
+    let setup = MachineSetup::from_config(machine).map_err(|e| miette::miette!("{e}"))?;
+    let input = std::io::BufReader::new(
+        std::fs::File::open(&args.file)
+            .map_err(|e| miette::miette!("cannot read {}: {e}", args.file.display()))?,
+    );
+    let config_name = args.config.display().to_string();
+    match execute(machine, setup, input, name, &config_name, &options) {
+        Err(ExecuteError::Steps(e)) => {
+            let line = locate_step_problem(&args.config, &args.file, &options, e.time);
+            Ok(Some(motion::machine::Problem {
+                span: gcode::Span {
+                    line: line.unwrap_or(0),
+                    column: 1,
+                    len: 0,
+                },
+                severity: Severity::Error,
+                message: e.to_string(),
+                line_text: None,
+            }))
+        }
+        // Planning problems were reported by the check itself; anything else is not the file's.
+        _ => Ok(None),
+    }
+}
+
 /// A planning error as a diagnostic on the G-code line.
 pub fn pipeline_error(file: &Path, e: motion::machine::PipelineError) -> miette::Report {
     match e {
@@ -503,10 +648,18 @@ pub fn pipeline_error(file: &Path, e: motion::machine::PipelineError) -> miette:
 }
 
 pub fn check(args: CheckArgs) -> miette::Result<ExitCode> {
-    let (_, setup) = load_machine(&args.config)?;
+    let (machine, setup) = load_machine(&args.config)?;
     let (reader, name, bar) = input::open_gcode(&args.file).map_err(super::plain)?;
-    let report: CheckReport = check_gcode(&setup, reader, &name, args.max_problems);
+    let mut report: CheckReport = check_gcode(&setup, reader, &name, args.max_problems);
     bar.finish_and_clear();
+    if report.errors() == 0
+        && let Some(problem) = audit_file(&machine, &args, &name)?
+    {
+        report.error_count += 1;
+        if report.problems.len() < args.max_problems {
+            report.problems.push(problem);
+        }
+    }
     let label = |p: &motion::machine::Problem| match p.severity {
         Severity::Error => "error",
         Severity::Warning => "warning",

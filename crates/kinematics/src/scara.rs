@@ -61,6 +61,15 @@ pub struct ScaraGeometry {
     fekt_cos_quirk: bool,
 }
 
+/// Which joint motor of a SCARA a [`MotorMap::ScaraJoint`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScaraJoint {
+    /// `stepper_a = q1 + shoulder_zero`.
+    Shoulder,
+    /// `stepper_b = q2 + c·q1 + elbow_zero`.
+    Elbow,
+}
+
 /// Joint angles of one pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Joints {
@@ -369,6 +378,32 @@ impl ScaraGeometry {
         }
     }
 
+    /// Arm-frame components of a bed-frame direction (the offsets cancel; the X-SCARA frame swaps).
+    pub fn arm_direction(&self, dx: f64, dy: f64) -> (f64, f64) {
+        match self.frame {
+            ScaraFrame::Standard => (dx, dy),
+            ScaraFrame::XScara => (dy, dx),
+        }
+    }
+
+    /// `(L1, L2)`.
+    pub fn link_lengths(&self) -> (f64, f64) {
+        (self.link1_length, self.link2_length)
+    }
+
+    pub fn elbow(&self) -> ElbowBranch {
+        self.elbow
+    }
+
+    pub fn shoulder_zero(&self) -> f64 {
+        self.shoulder_zero
+    }
+
+    /// Whether [`Scara::with_fekt_cos_quirk`] is on.
+    pub fn fekt_cos_quirk(&self) -> bool {
+        self.fekt_cos_quirk
+    }
+
     pub fn bed_frame(&self, u: f64, v: f64) -> (f64, f64) {
         let (a, b) = match self.frame {
             ScaraFrame::Standard => (u, v),
@@ -469,13 +504,26 @@ impl Kinematics for Scara {
         &self.motors
     }
 
+    /// Joint motors have a one-motor model, except with the FEKT cos quirk: its 1e-6 rad jump at right-angle
+    /// elbows has no derivative, and only bit-exact comparisons with the fork use it (general solver).
     fn motor_map(&self, motor: usize) -> MotorMap {
-        if motor == Z {
-            MotorMap::Linear {
-                coeffs: [0.0, 0.0, 1.0],
+        let joint = match motor {
+            Z => {
+                return MotorMap::Linear {
+                    coeffs: [0.0, 0.0, 1.0],
+                };
             }
-        } else {
+            SHOULDER => ScaraJoint::Shoulder,
+            ELBOW => ScaraJoint::Elbow,
+            _ => return MotorMap::General,
+        };
+        if self.geometry.fekt_cos_quirk {
             MotorMap::General
+        } else {
+            MotorMap::ScaraJoint {
+                geometry: self.geometry,
+                joint,
+            }
         }
     }
 

@@ -209,7 +209,7 @@ impl Profile {
                 let (s_star, d, xy) = line.closest_approach(centre);
                 Profile::Angle { s_star, d, xy }
             }
-            MotorMap::General => Profile::General { motor },
+            MotorMap::General | MotorMap::ScaraJoint { .. } => Profile::General { motor },
         }
     }
 

@@ -40,6 +40,18 @@ impl GeneralState {
         }
     }
 
+    /// The last evaluated position of motor `motor` (what the next evaluation unwraps near).
+    pub(crate) fn motor(&self, motor: usize) -> Option<f64> {
+        self.previous.get(motor).copied()
+    }
+
+    /// Set what the next evaluation unwraps motor `motor` near (another solver moved it meanwhile).
+    pub(crate) fn set_motor(&mut self, motor: usize, value: f64) {
+        if let Some(slot) = self.previous.get_mut(motor) {
+            *slot = value;
+        }
+    }
+
     /// Motor position at toolhead position `p`, unwrapped near the previous evaluation.
     fn position(&mut self, kin: &dyn Kinematics, p: Vec3) -> Result<f64, kinematics::ReachError> {
         kin.inverse_near(p, &self.previous, &mut self.scratch)?;

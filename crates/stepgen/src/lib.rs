@@ -21,6 +21,7 @@ mod generator;
 mod motor;
 mod moves_csv;
 mod pipeline;
+mod scara;
 mod sink;
 mod stats;
 mod timing;

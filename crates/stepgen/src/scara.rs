@@ -39,6 +39,8 @@ const REACH_MARGIN: f64 = 1e-12;
 const BOUND_SLACK: f64 = 1e-12;
 /// Most stretches pending in the run search (each halving adds one; 2⁻⁹⁰ of a span is far below `tol`).
 const STACK: usize = 96;
+/// Evaluations by increments between two full ones (each adds at most a few 1e-17 rad of rounding).
+const CHAIN: u32 = 32;
 /// Newton iterations before giving up on convergence (bisection alone needs ~60 for any span).
 const MAX_ITERATIONS: usize = 200;
 
@@ -53,6 +55,11 @@ struct Point {
     q1: f64,
     /// Angle between link 1 and the nozzle ray, `atan2(L2 sin q2, L1 + L2 cos q2)`.
     beta: f64,
+    /// Arm-frame position, `cos q2` and signed `√(1 − cos² q2)`: what [`JointLine::eval_near`] starts from.
+    u: f64,
+    v: f64,
+    c2: f64,
+    s2: f64,
 }
 
 /// One piece's line as seen by one joint motor.
@@ -174,6 +181,50 @@ impl JointLine {
             slope: self.slope(r, rp, cos_q2, signed_sin),
             q1,
             beta,
+            u,
+            v,
+            c2: cos_q2,
+            s2: signed_sin,
+        })
+    }
+
+    /// The motor at `s` from a nearby evaluated point `from`, without a libm call: the nozzle ray, `β` and
+    /// `q2` turn by small angles whose sines and cosines are cross and dot products of the two points'
+    /// vectors, and a small angle is its tangent's short series. `None` when an increment is too large for
+    /// the series (or the point is out of reach): the caller evaluates in full.
+    #[inline]
+    fn eval_near(&self, s: f64, from: &Point) -> Option<Point> {
+        let x = self.start[0] + self.dir[0] * s;
+        let y = self.start[1] + self.dir[1] * s;
+        let (u, v) = self.geometry.arm_frame(x, y);
+        let (l1, l2) = (self.l1, self.l2);
+        let c2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+        if !(c2 > -1.0 && c2 < 1.0) {
+            return None;
+        }
+        let s2 = self.branch * (1.0 - c2 * c2).sqrt();
+        let d_theta = small_atan(from.u * v - from.v * u, from.u * u + from.v * v)?;
+        let (bx0, by0) = (l1 + l2 * from.c2, l2 * from.s2);
+        let (bx, by) = (l1 + l2 * c2, l2 * s2);
+        let d_beta = small_atan(bx0 * by - by0 * bx, bx0 * bx + by0 * by)?;
+        let d_q2 = small_atan(s2 * from.c2 - c2 * from.s2, c2 * from.c2 + s2 * from.s2)?;
+        let d_q1 = d_theta - d_beta;
+        let d_f = if self.shoulder {
+            d_q1
+        } else {
+            d_q2 + self.coupling * d_q1
+        };
+        let r = u * u + v * v;
+        let rp = 2.0 * (u * self.arm_dir[0] + v * self.arm_dir[1]);
+        Some(Point {
+            f: from.f + d_f,
+            slope: self.slope(r, rp, c2, s2),
+            q1: from.q1 + d_q1,
+            beta: from.beta + d_beta,
+            u,
+            v,
+            c2,
+            s2,
         })
     }
 
@@ -267,6 +318,20 @@ impl JointLine {
     }
 }
 
+/// Largest tangent [`small_atan`] takes: the first series term left out, t¹¹/11, is below 1e-23.
+const SMALL_TAN: f64 = 1e-2;
+
+/// `atan2(y, x)` for a small angle (`|y/x| ≤ SMALL_TAN`, `x > 0`), from the series of `atan(t)`.
+#[inline]
+fn small_atan(y: f64, x: f64) -> Option<f64> {
+    let t = y / x;
+    if !(x > 0.0 && t.abs() <= SMALL_TAN) {
+        return None;
+    }
+    let t2 = t * t;
+    Some(t * (1.0 - t2 * (1.0 / 3.0 - t2 * (1.0 / 5.0 - t2 * (1.0 / 7.0 - t2 / 9.0)))))
+}
+
 /// Interval product.
 fn mul(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
     let p = [a.0 * b.0, a.0 * b.1, a.1 * b.0, a.1 * b.1];
@@ -301,7 +366,9 @@ struct Crossings<'a> {
     prev: (f64, f64, f64),
     /// Estimate of d²(motor)/ds², from successive crossings.
     curvature: f64,
-    q1: f64,
+    /// The last evaluated point, and how many evaluations have been chained from it since the last full one.
+    anchor: Point,
+    chained: u32,
     /// Distance tolerance of a crossing.
     tol: f64,
     failure: Option<(f64, ReachError)>,
@@ -338,14 +405,13 @@ impl Crossings<'_> {
             if !self.inside(x) || x == self.before || x == self.after {
                 x = 0.5 * (self.before + self.after);
             }
-            let p = match self.line.eval(x, self.q1) {
+            let p = match self.evaluate(x) {
                 Ok(p) => p,
                 Err(e) => {
                     self.failure.get_or_insert((x, e));
                     return x;
                 }
             };
-            self.q1 = p.q1;
             last = (x, p.slope);
             let g = (p.f - level) * self.rising;
             if g == 0.0 {
@@ -369,6 +435,29 @@ impl Crossings<'_> {
             x = next;
         }
         self.accept(x, level, last)
+    }
+
+    /// The motor at `x`: from the last point by increments, in full every [`CHAIN`] evaluations (so the
+    /// increments' rounding cannot add up) or when the increment is too large for the series.
+    #[inline]
+    fn evaluate(&mut self, x: f64) -> Result<Point, ReachError> {
+        let near = if self.chained < CHAIN {
+            self.line.eval_near(x, &self.anchor)
+        } else {
+            None
+        };
+        let p = match near {
+            Some(p) => {
+                self.chained += 1;
+                p
+            }
+            None => {
+                self.chained = 0;
+                self.line.eval(x, self.anchor.q1)?
+            }
+        };
+        self.anchor = p;
+        Ok(p)
     }
 
     /// A length below every curvature radius of the motor function that matters for acceptance.
@@ -514,7 +603,8 @@ impl MotorStepper {
             rising: if pb.f >= pa.f { 1.0 } else { -1.0 },
             prev: (sa, pa.f, pa.slope),
             curvature: (pb.slope - pa.slope) / (sb - sa),
-            q1: pa.q1,
+            anchor: *pa,
+            chained: 0,
             tol,
             failure: None,
         };

@@ -82,6 +82,7 @@ struct JointLine {
     /// `L1² + L2²` and `2·L1·L2`.
     mid: f64,
     scale: f64,
+    inv_scale: f64,
     /// +1 on the left elbow branch (`q2 ≥ 0`), −1 on the right.
     branch: f64,
     /// `c` of `q2 + c·q1` (elbow motor).
@@ -109,6 +110,7 @@ impl JointLine {
             l2,
             mid: l1 * l1 + l2 * l2,
             scale: 2.0 * l1 * l2,
+            inv_scale: 1.0 / (2.0 * l1 * l2),
             branch: match geometry.elbow() {
                 ElbowBranch::Left => 1.0,
                 ElbowBranch::Right => -1.0,
@@ -144,11 +146,15 @@ impl JointLine {
         rmin > 0.0 && cmin > -1.0 + REACH_MARGIN && cmax < 1.0 - REACH_MARGIN
     }
 
-    /// Motor rate from `ρ²`, its derivative, `cos q2` and the signed `sin q2`.
+    /// Motor rate from `ρ²`, its derivative, `cos q2` and the signed `sin q2`. With `D = 2·L1·L2·sin q2`:
+    /// `q2' = −(ρ²)'/D` and `q1' = (cross − L2·(L2 + L1·cos q2)·q2')/ρ² = (cross·D + L2·(L2 + L1·cos q2)·(ρ²)')/(ρ²·D)`,
+    /// one division for both.
     #[inline]
     fn slope(&self, r: f64, rp: f64, c2: f64, s2: f64) -> f64 {
-        let dq2 = -(rp / self.scale) / s2;
-        let dq1 = (self.cross - self.l2 * (self.l2 + self.l1 * c2) * dq2) / r;
+        let den = self.scale * s2;
+        let inv = 1.0 / (den * r);
+        let dq2 = -rp * r * inv;
+        let dq1 = (self.cross * den + self.l2 * (self.l2 + self.l1 * c2) * rp) * inv;
         if self.shoulder {
             dq1
         } else {
@@ -198,7 +204,7 @@ impl JointLine {
         let y = self.start[1] + self.dir[1] * s;
         let (u, v) = self.geometry.arm_frame(x, y);
         let (l1, l2) = (self.l1, self.l2);
-        let c2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+        let c2 = (u * u + v * v - self.mid) * self.inv_scale;
         if !(c2 > -1.0 && c2 < 1.0) {
             return None;
         }
@@ -364,6 +370,10 @@ struct Crossings<'a> {
     rising: f64,
     /// The last crossing: distance, level and motor rate.
     prev: (f64, f64, f64),
+    /// `1 / rate` at the last crossing (the next prediction's step without a division).
+    inv_slope: f64,
+    /// `1 / (0.1·min(L1, L2))`: a curvature no motor function that matters here exceeds (acceptance slack).
+    inv_length: f64,
     /// Estimate of d²(motor)/ds², from successive crossings.
     curvature: f64,
     /// The last evaluated point, and how many evaluations have been chained from it since the last full one.
@@ -387,9 +397,9 @@ impl Crossings<'_> {
 
     /// First guess for `level`: the previous crossing advanced by a second-order Taylor step.
     fn predict(&self, level: f64) -> f64 {
-        let (s0, f0, slope) = self.prev;
-        let dx = (level - f0) / slope;
-        let guess = s0 + dx - 0.5 * self.curvature * dx * dx / slope;
+        let (s0, f0, _) = self.prev;
+        let dx = (level - f0) * self.inv_slope;
+        let guess = s0 + dx - 0.5 * self.curvature * dx * dx * self.inv_slope;
         if guess.is_finite() {
             guess
         } else {
@@ -400,7 +410,7 @@ impl Crossings<'_> {
     /// Distance where the motor reaches `level`.
     fn solve(&mut self, level: f64) -> f64 {
         let mut x = self.predict(level);
-        let mut last = (self.prev.0, self.prev.2);
+        let mut last = (self.prev.0, self.prev.2, self.inv_slope);
         for _ in 0..MAX_ITERATIONS {
             if !self.inside(x) || x == self.before || x == self.after {
                 x = 0.5 * (self.before + self.after);
@@ -412,7 +422,8 @@ impl Crossings<'_> {
                     return x;
                 }
             };
-            last = (x, p.slope);
+            let inv_slope = 1.0 / p.slope;
+            last = (x, p.slope, inv_slope);
             let g = (p.f - level) * self.rising;
             if g == 0.0 {
                 return self.accept(x, level, last);
@@ -422,10 +433,11 @@ impl Crossings<'_> {
             } else {
                 self.after = x;
             }
-            let step = -(p.f - level) / p.slope;
+            let step = -(p.f - level) * inv_slope;
             let next = x + step;
-            // Newton's error after this step is about |f''/(2f')|·step²; accept it when that is below tol.
-            let kappa = 2.0 * (self.curvature / p.slope).abs() + 1.0 / self.l_geom();
+            // Newton's error after this step is about |f''/(2f')|·step²; accept it when that is below tol
+            // (with the curvature estimate doubled, and a floor on it).
+            let kappa = (2.0 * self.curvature * inv_slope).abs() + self.inv_length;
             if step.is_finite() && step * step * kappa <= self.tol && self.inside(next) {
                 return self.accept(next, level, last);
             }
@@ -460,12 +472,7 @@ impl Crossings<'_> {
         Ok(p)
     }
 
-    /// A length below every curvature radius of the motor function that matters for acceptance.
-    fn l_geom(&self) -> f64 {
-        0.1 * self.line.l1.min(self.line.l2)
-    }
-
-    fn accept(&mut self, root: f64, level: f64, last: (f64, f64)) -> f64 {
+    fn accept(&mut self, root: f64, level: f64, last: (f64, f64, f64)) -> f64 {
         let (s0, _, slope0) = self.prev;
         if last.0 != s0 {
             let curvature = (last.1 - slope0) / (last.0 - s0);
@@ -474,6 +481,7 @@ impl Crossings<'_> {
             }
         }
         self.prev = (root, level, last.1);
+        self.inv_slope = last.2;
         // The next level lies between this crossing and the run end.
         self.before = root;
         self.after = self.end;
@@ -602,6 +610,8 @@ impl MotorStepper {
             end: sb,
             rising: if pb.f >= pa.f { 1.0 } else { -1.0 },
             prev: (sa, pa.f, pa.slope),
+            inv_slope: 1.0 / pa.slope,
+            inv_length: 10.0 / line.l1.min(line.l2),
             curvature: (pb.slope - pa.slope) / (sb - sa),
             anchor: *pa,
             chained: 0,

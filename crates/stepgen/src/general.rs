@@ -1,4 +1,5 @@
-//! Step times for motors without a closed form (SCARA joints, polar with an offset arm), through
+//! Step times for motors without a closed form (polar with an offset arm; SCARA joints where the one-motor
+//! solver of `crate::scara` does not apply: spans at the reach limits, the FEKT cos quirk), through
 //! [`Kinematics::inverse_near`].
 //!
 //! Along a monotonic span of a piece the motor position `f(s)` is a smooth function of the travelled distance

@@ -292,8 +292,8 @@ fn check_machine(
     let second = trapezoid(second_start, points[1], points[2], speeds[1].0, speeds[1].1);
     let moves = [first, second];
     let steps = generated(kin, points[0], &moves);
-    for motor in 0..2 {
-        check_motor(kin, points[0], &moves, motor, &steps[motor])?;
+    for (motor, motor_steps) in steps.iter().enumerate().take(2) {
+        check_motor(kin, points[0], &moves, motor, motor_steps)?;
     }
     Ok(())
 }

@@ -45,7 +45,14 @@ pub enum MotorMap {
     Radius { centre: [f64; 2] },
     /// position = `atan2(y − cy, x − cx)`, unwrapped to be continuous (polar bed).
     Angle { centre: [f64; 2] },
-    /// No closed form (SCARA joints, polar with a sideways arm offset).
+    /// One joint motor of a SCARA arm: evaluated alone from the arm's geometry (no other motor computed),
+    /// with derivatives along a line in closed form. Consumers without a special solver treat it as
+    /// `General`.
+    ScaraJoint {
+        geometry: scara::ScaraGeometry,
+        joint: scara::ScaraJoint,
+    },
+    /// No closed form (polar with a sideways arm offset, a SCARA replicating the FEKT fork's cos quirk).
     General,
 }
 
@@ -176,6 +183,12 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// The point where a bed angle is undefined, for machines that have one (an ideal polar machine).
     fn rotation_centre(&self) -> Option<RotationCentre> {
         None
+    }
+
+    /// Whether the toolhead must come to rest at `p` (a SCARA arm in its singular band: nearly straight or
+    /// folded, where only motion from or to rest keeps the joints at finite speed).
+    fn rests_at(&self, _p: Vec3) -> bool {
+        false
     }
 
     /// Checks one point against everything [`Self::check_segment`] checks (soft limits included).

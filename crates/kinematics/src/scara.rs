@@ -61,6 +61,15 @@ pub struct ScaraGeometry {
     fekt_cos_quirk: bool,
 }
 
+/// Which joint motor of a SCARA a [`MotorMap::ScaraJoint`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScaraJoint {
+    /// `stepper_a = q1 + shoulder_zero`.
+    Shoulder,
+    /// `stepper_b = q2 + c·q1 + elbow_zero`.
+    Elbow,
+}
+
 /// Joint angles of one pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Joints {
@@ -201,8 +210,9 @@ impl Scara {
         }
     }
 
-    /// Soft limits of one point with known joint angles (q1 as it would be commanded).
-    fn check_pose(&self, p: Vec3, j: Joints) -> Result<(), ReachError> {
+    /// Soft limits of one point with known joint angles (q1 as it would be commanded). `singular_ok`: the point
+    /// lies next to an end of its segment that rests in the singular band (see [`Self::singular_ends`]).
+    fn check_pose(&self, p: Vec3, j: Joints, singular_ok: bool) -> Result<(), ReachError> {
         let [x, y, z] = p;
         let (u, v) = self.arm_frame(x, y);
         let distance = (u * u + v * v).sqrt();
@@ -215,7 +225,7 @@ impl Scara {
             });
         }
         let sin_q2 = j.q2.sin().abs();
-        if sin_q2 < self.params.singularity_margin {
+        if sin_q2 < self.params.singularity_margin && !singular_ok {
             return Err(ReachError::Singular {
                 x,
                 y,
@@ -287,7 +297,7 @@ impl Scara {
     }
 
     /// Samples the segment for shoulder/motor limit crossings (q1 is not monotone along a line).
-    fn sample_joint_limits(&self, a: Vec3, b: Vec3) -> Result<(), SegmentError> {
+    fn sample_joint_limits(&self, a: Vec3, b: Vec3, exempt: Exempt) -> Result<(), SegmentError> {
         let length = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
         let samples = ((length / SEGMENT_SAMPLE_MM).ceil() as usize).clamp(1, SEGMENT_MAX_SAMPLES);
         let start = self
@@ -300,13 +310,13 @@ impl Scara {
             let p = lerp(a, b, t);
             let state = self
                 .joints_near(p, good_q1)
-                .and_then(|j| self.check_pose(p, j).map(|()| j));
+                .and_then(|j| self.check_pose(p, j, exempt.covers(t)).map(|()| j));
             match state {
                 Ok(j) => {
                     good_t = t;
                     good_q1 = j.q1;
                 }
-                Err(_) => return Err(self.refine_crossing(a, b, good_t, good_q1, t)),
+                Err(_) => return Err(self.refine_crossing(a, b, (good_t, good_q1), t, exempt)),
             }
         }
         Ok(())
@@ -317,9 +327,9 @@ impl Scara {
         &self,
         a: Vec3,
         b: Vec3,
-        mut good_t: f64,
-        mut good_q1: f64,
+        (mut good_t, mut good_q1): (f64, f64),
         mut bad_t: f64,
+        exempt: Exempt,
     ) -> SegmentError {
         let mut reason = ReachError::NotFinite;
         while bad_t - good_t > SEGMENT_T_TOLERANCE {
@@ -327,7 +337,7 @@ impl Scara {
             let p = lerp(a, b, mid);
             match self
                 .joints_near(p, good_q1)
-                .and_then(|j| self.check_pose(p, j).map(|()| j))
+                .and_then(|j| self.check_pose(p, j, exempt.covers(mid)).map(|()| j))
             {
                 Ok(j) => {
                     good_t = mid;
@@ -343,7 +353,7 @@ impl Scara {
             let p = lerp(a, b, bad_t);
             if let Err(e) = self
                 .joints_near(p, good_q1)
-                .and_then(|j| self.check_pose(p, j))
+                .and_then(|j| self.check_pose(p, j, exempt.covers(bad_t)))
             {
                 reason = e;
             }
@@ -351,10 +361,69 @@ impl Scara {
         SegmentError { t: bad_t, reason }
     }
 
-    fn check_point_inner(&self, p: Vec3) -> Result<(), ReachError> {
+    fn check_point_exempt(&self, p: Vec3, singular_ok: bool) -> Result<(), ReachError> {
         ensure_finite_point(p)?;
         let j = self.joints(p[0], p[1])?;
-        self.check_pose(p, j)
+        self.check_pose(p, j, singular_ok)
+    }
+
+    /// Whether `p` lies in the singular band (`|sin q2|` below the margin: the arm nearly straight or folded).
+    pub fn in_singular_band(&self, p: Vec3) -> bool {
+        self.joints(p[0], p[1])
+            .is_ok_and(|j| j.q2.sin().abs() < self.params.singularity_margin)
+    }
+
+    /// The stretches of the segment `a → b` next to an end that rests in the singular band: such an end is a
+    /// pose the arm may stop at (the FEKT arm homes to the straight arm) and the planner brings the arm to rest
+    /// there, so from rest its joints move at finite speed however close the pose is to singular. Only the
+    /// rest of the segment must keep the margin. The distance from the shoulder is monotone on either side of
+    /// the closest approach `t_near`, so each stretch ends where the segment leaves the band, found by bisection.
+    fn singular_ends(&self, a: Vec3, b: Vec3, t_near: f64) -> Exempt {
+        let in_band = |t: f64| self.in_singular_band(lerp(a, b, t));
+        let leaves = |mut inside: f64, mut outside: f64| {
+            if in_band(outside) {
+                return outside;
+            }
+            while (outside - inside).abs() > SEGMENT_T_TOLERANCE {
+                let mid = 0.5 * (inside + outside);
+                if in_band(mid) {
+                    inside = mid;
+                } else {
+                    outside = mid;
+                }
+            }
+            inside
+        };
+        Exempt {
+            to: if in_band(0.0) {
+                leaves(0.0, t_near)
+            } else {
+                -1.0
+            },
+            from: if in_band(1.0) {
+                leaves(1.0, t_near)
+            } else {
+                2.0
+            },
+        }
+    }
+}
+
+/// Where along a segment (`t < to` or `t > from`) the singularity margin does not apply.
+#[derive(Debug, Clone, Copy)]
+struct Exempt {
+    to: f64,
+    from: f64,
+}
+
+impl Exempt {
+    const NONE: Exempt = Exempt {
+        to: -1.0,
+        from: 2.0,
+    };
+
+    fn covers(&self, t: f64) -> bool {
+        t <= self.to || t >= self.from
     }
 }
 
@@ -367,6 +436,32 @@ impl ScaraGeometry {
             ScaraFrame::Standard => (u, v),
             ScaraFrame::XScara => (v, u),
         }
+    }
+
+    /// Arm-frame components of a bed-frame direction (the offsets cancel; the X-SCARA frame swaps).
+    pub fn arm_direction(&self, dx: f64, dy: f64) -> (f64, f64) {
+        match self.frame {
+            ScaraFrame::Standard => (dx, dy),
+            ScaraFrame::XScara => (dy, dx),
+        }
+    }
+
+    /// `(L1, L2)`.
+    pub fn link_lengths(&self) -> (f64, f64) {
+        (self.link1_length, self.link2_length)
+    }
+
+    pub fn elbow(&self) -> ElbowBranch {
+        self.elbow
+    }
+
+    pub fn shoulder_zero(&self) -> f64 {
+        self.shoulder_zero
+    }
+
+    /// Whether [`Scara::with_fekt_cos_quirk`] is on.
+    pub fn fekt_cos_quirk(&self) -> bool {
+        self.fekt_cos_quirk
     }
 
     pub fn bed_frame(&self, u: f64, v: f64) -> (f64, f64) {
@@ -469,13 +564,26 @@ impl Kinematics for Scara {
         &self.motors
     }
 
+    /// Joint motors have a one-motor model, except with the FEKT cos quirk: its 1e-6 rad jump at right-angle
+    /// elbows has no derivative, and only bit-exact comparisons with the fork use it (general solver).
     fn motor_map(&self, motor: usize) -> MotorMap {
-        if motor == Z {
-            MotorMap::Linear {
-                coeffs: [0.0, 0.0, 1.0],
+        let joint = match motor {
+            Z => {
+                return MotorMap::Linear {
+                    coeffs: [0.0, 0.0, 1.0],
+                };
             }
-        } else {
+            SHOULDER => ScaraJoint::Shoulder,
+            ELBOW => ScaraJoint::Elbow,
+            _ => return MotorMap::General,
+        };
+        if self.geometry.fekt_cos_quirk {
             MotorMap::General
+        } else {
+            MotorMap::ScaraJoint {
+                geometry: self.geometry,
+                joint,
+            }
         }
     }
 
@@ -557,15 +665,20 @@ impl Kinematics for Scara {
         for (t, p) in [(0.0, a), (1.0, b)] {
             ensure_finite_point(p).map_err(|reason| SegmentError { t, reason })?;
         }
-        self.check_point_inner(a)
+        let (t_near, _) = closest_approach(a, b, self.shoulder());
+        let exempt = if self.params.singularity_margin > 0.0 {
+            self.singular_ends(a, b, t_near)
+        } else {
+            Exempt::NONE
+        };
+        self.check_point_exempt(a, exempt.covers(0.0))
             .map_err(|reason| SegmentError { t: 0.0, reason })?;
         // Sampling first, so the reported `t` is the first crossing even when the end point fails too.
         let q1_start = self.joints(a[0], a[1]).map(|j| j.q1).unwrap_or(0.0);
         if self.q1_limits_may_bind(q1_start) {
-            self.sample_joint_limits(a, b)?;
+            self.sample_joint_limits(a, b, exempt)?;
         }
-        let (t_near, _) = closest_approach(a, b, self.shoulder());
-        let at = |t: f64| self.check_point_inner(lerp(a, b, t));
+        let at = |t: f64| self.check_point_exempt(lerp(a, b, t), exempt.covers(t));
         if let Err(reason) = at(t_near) {
             return Err(first_failure(0.0, t_near, reason, at));
         }
@@ -576,7 +689,12 @@ impl Kinematics for Scara {
     }
 
     fn check_point(&self, p: Vec3) -> Result<(), ReachError> {
-        self.check_point_inner(p)
+        // A point alone is a pose the arm rests at: the singular band is allowed there (see `singular_ends`).
+        self.check_point_exempt(p, true)
+    }
+
+    fn rests_at(&self, p: Vec3) -> bool {
+        self.in_singular_band(p)
     }
 }
 
@@ -636,9 +754,34 @@ mod tests {
         // |sin q2| = 0.1 ⇒ cos q2 = √0.99 ⇒ ρ² = 2·100²·(1 + √0.99)
         let expected = (20000.0 * (1.0 + 0.99f64.sqrt())).sqrt();
         assert!((s.max_radius() - expected).abs() < 1e-9);
-        assert!(matches!(
-            s.check_point([0.0, 199.9, 0.0]),
-            Err(ReachError::Singular { .. })
-        ));
+        // The arm may rest in the band (the FEKT arm homes stretched straight) and move from or to there: the
+        // planner stops it there.
+        assert!(s.rests_at([0.0, 199.9, 0.0]) && !s.rests_at([0.0, 150.0, 0.0]));
+        assert_eq!(s.check_point([0.0, 199.9, 0.0]), Ok(()));
+        assert_eq!(s.check_point([0.0, 200.0, 0.0]), Ok(()));
+        assert_eq!(
+            s.check_segment([0.0, 200.0, 0.0], [0.0, 130.0, 0.0]),
+            Ok(())
+        );
+        assert_eq!(
+            s.check_segment([0.0, 130.0, 0.0], [0.0, 200.0, 0.0]),
+            Ok(())
+        );
+    }
+
+    #[test]
+    fn a_segment_through_the_folded_band_is_refused_where_it_enters_it() {
+        let mut p = fekt().params().clone();
+        p.singularity_margin = 0.1;
+        p.base_protection_radius = 0.0;
+        let s = Scara::new(p).expect("valid");
+        // |sin q2| = 0.1 folded ⇒ ρ = √(2·100²·(1 − √0.99)) ≈ 10.0 mm: a line 5 mm from the shoulder crosses it.
+        let inner = (20000.0 * (1.0 - 0.99f64.sqrt())).sqrt();
+        let err = s
+            .check_segment([-50.0, 5.0, 0.0], [50.0, 5.0, 0.0])
+            .expect_err("crosses the folded band");
+        assert!(matches!(err.reason, ReachError::Singular { .. }), "{err}");
+        let x = -50.0 + 100.0 * err.t;
+        assert!((x.hypot(5.0) - inner).abs() < 1e-6, "enters at x = {x}");
     }
 }

@@ -215,7 +215,7 @@ impl Profile {
                     Profile::Angle { s_star, d, xy }
                 }
             }
-            MotorMap::General => Profile::General { motor },
+            MotorMap::General | MotorMap::ScaraJoint { .. } => Profile::General { motor },
         }
     }
 

@@ -148,9 +148,9 @@ fn centre_turn(
 }
 
 /// The toolhead pose after every axis has run to its endstop. Polar: the arm at its endstop, the bed angle
-/// declared 0 (as Klipper does). SCARA: each joint at its endstop angle (degrees in the file), the elbow
-/// motor's reading converted through the coupling by the forward kinematics. Cartesian: every axis at its
-/// endstop.
+/// declared 0 (as Klipper does). SCARA: the declared `home_position` when the config has one (FEKT-SCARA), else
+/// each joint at its endstop angle (degrees in the file), the elbow motor's reading converted through the
+/// coupling by the forward kinematics. Cartesian: every axis at its endstop.
 fn home_position(
     machine: &MachineConfig,
     kin: &dyn Kinematics,
@@ -175,16 +175,39 @@ fn home_position(
             _ => None,
         },
         KinematicsKind::Scara => match (
+            declared_home(machine, endstop("stepper_z")),
             endstop("stepper_a"),
             endstop("stepper_b"),
             endstop("stepper_z"),
         ) {
-            (Some(a), Some(b), Some(z)) => {
+            (Some(pose), ..) => Some(declared_pose(kin, pose)?),
+            (None, Some(a), Some(b), Some(z)) => {
                 Some(kin_forward(kin, &[a.to_radians(), b.to_radians(), z])?)
             }
             _ => None,
         },
     };
+    Ok(pose)
+}
+
+/// FEKT-SCARA's `home_position`: homing declares the arm there without moving it (its joint endstops, if any,
+/// are not used), and Z homes to its endstop when it has one.
+fn declared_home(machine: &MachineConfig, z_endstop: Option<f64>) -> Option<[f64; 3]> {
+    let declared = machine.home_position.as_deref()?;
+    let (x, y) = (*declared.first()?, *declared.get(1)?);
+    let z = z_endstop.or(declared.get(2).copied()).unwrap_or(0.0);
+    Some([x, y, z])
+}
+
+/// A declared pose must be one the arm can take.
+fn declared_pose(kin: &dyn Kinematics, pose: [f64; 3]) -> Result<[f64; 3], SetupError> {
+    let mut motors = vec![0.0; kin.motors().len()];
+    kin.inverse(pose, &mut motors)
+        .map_err(|e| SetupError::Home {
+            x: pose[0],
+            y: pose[1],
+            reason: e.to_string(),
+        })?;
     Ok(pose)
 }
 

@@ -242,9 +242,28 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         } else {
             Vec::new()
         };
+        let rests = whole.is_kinematic && self.kinematics.rests_at(xyz(whole.end_pos));
         if spans.is_empty() {
-            return self.queue_move(whole, speed);
+            self.queue_move(whole, speed)?;
+        } else {
+            self.queue_spans(start, &whole, &spans, speed, origin)?;
         }
+        if rests {
+            // A pose the machine may only reach at rest: plan everything up to it to a stop.
+            self.flush_lookahead();
+        }
+        Ok(())
+    }
+
+    /// The spans of a move, each with its own caps.
+    fn queue_spans(
+        &mut self,
+        start: [f64; 4],
+        whole: &Move,
+        spans: &[kinematic_limits::Span],
+        speed: f64,
+        origin: u64,
+    ) -> Result<(), MoveError> {
         let mut from = start;
         for (i, span) in spans.iter().enumerate() {
             if !(span.max_speed > 0.0 && span.max_speed.is_finite() && span.max_accel > 0.0) {

@@ -45,12 +45,22 @@ fn cartesian() -> Box<dyn Kinematics> {
 }
 
 fn scara() -> Box<dyn Kinematics> {
+    Box::new(scara_arm())
+}
+
+fn scara_arm() -> Scara {
     let p = ScaraParams {
         z: stepper("stepper_z", 0.0025),
         base_protection_radius: 0.0,
         ..ScaraParams::fekt_example()
     };
-    Box::new(Scara::new(p).expect("scara parameters"))
+    Scara::new(p).expect("scara parameters")
+}
+
+/// The same arm with the FEKT fork's cos quirk, which sends its joints to the general solver: the old path,
+/// measured in the same run for the ratio.
+fn scara_general() -> Box<dyn Kinematics> {
+    Box::new(scara_arm().with_fekt_cos_quirk(true))
 }
 
 struct Workload {
@@ -165,13 +175,25 @@ fn bench(c: &mut Criterion) {
             [0.0, 130.0, 0.5],
             [0.0, 130.0],
         ),
+        workload(
+            "scara-fekt-synthetic",
+            scara_general(),
+            [0.0, 130.0, 0.5],
+            [0.0, 130.0],
+        ),
     ];
     let mut group = c.benchmark_group("stepgen_one_core");
     group.sample_size(10);
     for w in &workloads {
         let steps = pool.install(|| run_one_core(w));
         group.throughput(Throughput::Elements(steps));
-        group.bench_function(&w.name, |b| b.iter(|| pool.install(|| run_one_core(w))));
+        let name = if w.kin.motor_map(0) == kinematics::MotorMap::General && w.kin.name() == "scara"
+        {
+            format!("{} (general solver)", w.name)
+        } else {
+            w.name.clone()
+        };
+        group.bench_function(&name, |b| b.iter(|| pool.install(|| run_one_core(w))));
     }
     group.finish();
 }

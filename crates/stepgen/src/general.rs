@@ -1,4 +1,5 @@
-//! Step times for motors without a closed form (SCARA joints, polar with an offset arm), through
+//! Step times for motors without a closed form (polar with an offset arm; SCARA joints where the one-motor
+//! solver of `crate::scara` does not apply: spans at the reach limits, the FEKT cos quirk), through
 //! [`Kinematics::inverse_near`].
 //!
 //! Along a monotonic span of a piece the motor position `f(s)` is a smooth function of the travelled distance
@@ -37,6 +38,18 @@ impl GeneralState {
             previous: start_motors.to_vec(),
             scratch: vec![0.0; start_motors.len()],
             rows: vec![[0.0; 3]; start_motors.len()],
+        }
+    }
+
+    /// The last evaluated position of motor `motor` (what the next evaluation unwraps near).
+    pub(crate) fn motor(&self, motor: usize) -> Option<f64> {
+        self.previous.get(motor).copied()
+    }
+
+    /// Set what the next evaluation unwraps motor `motor` near (another solver moved it meanwhile).
+    pub(crate) fn set_motor(&mut self, motor: usize, value: f64) {
+        if let Some(slot) = self.previous.get_mut(motor) {
+            *slot = value;
         }
     }
 
@@ -118,7 +131,9 @@ impl<'a> Walk<'a> {
         walk.s_tol = (v_max * ROOT_TIME_TOL)
             .max(4.0 * f64::EPSILON * span.d0.abs().max(span.d1.abs()).max(1.0));
         walk.slope_bound = walk.bound_slope(motor)?;
-        if walk.slope_bound > 0.0 {
+        // An unbounded slope (a singular pose in the span) keeps the time-based shortest step: the walk must
+        // advance, and the steps between two samples are still found in order by the root solver.
+        if walk.slope_bound > 0.0 && walk.slope_bound.is_finite() {
             let half_step_travel = 0.5 * motor.spec().step_distance / walk.slope_bound;
             walk.min_ds = walk.min_ds.min(half_step_travel);
         }
@@ -154,7 +169,12 @@ impl<'a> Walk<'a> {
             Some(state) => state.slope(self.kin, p, self.piece.axes_r),
             None => Err(kinematics::ReachError::NotFinite),
         };
-        result.map_err(|e| self.error(motor, s, e))
+        match result {
+            // On a singular pose (a SCARA arm straight) the motor position has no derivative but is defined:
+            // the slope is unbounded, and the walk falls back to its shortest step there.
+            Err(kinematics::ReachError::Singular { .. }) => Ok(f64::INFINITY),
+            other => other.map_err(|e| self.error(motor, s, e)),
+        }
     }
 
     /// Twice the largest sampled |df/ds|, with extra samples around the largest one.

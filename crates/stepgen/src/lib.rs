@@ -3,7 +3,8 @@
 //! Reproduces Klipper's step semantics (itersolve + stepcompress with step compression off): a step when the
 //! ideal motor position crosses the half-step point around the commanded position, times rounded to MCU
 //! clock ticks, and the step+dir+step filter. Closed forms are used where they exist (Cartesian axes and the
-//! extruder, polar arm and bed); other motors use a bracketed solver over [`kinematics::Kinematics`].
+//! extruder, polar arm and bed), SCARA joints are solved one motor at a time from the arm's geometry, other
+//! motors use a bracketed solver over [`kinematics::Kinematics`].
 //!
 //! Entry points: [`StepPipeline`] (a `trapq::MoveSink` for the planner), [`StepGenerator`] (all motors,
 //! parallel over motors, chunks of pieces) or [`MotorStepper`] (one motor); steps go to a [`StepSink`] per
@@ -22,6 +23,7 @@ mod generator;
 mod motor;
 mod moves_csv;
 mod pipeline;
+mod scara;
 mod sink;
 mod stats;
 mod timing;

@@ -14,6 +14,7 @@
 
 use std::f64::consts::{PI, TAU};
 
+use kinematics::scara::{ScaraGeometry, ScaraJoint};
 use kinematics::{Kinematics, MotorMap, RADIAL_ROUNDING, Vec3};
 use trapq::{Motion, Piece};
 
@@ -38,6 +39,13 @@ pub enum MotorModel {
     Radius { centre: [f64; 2] },
     /// position = angle of `(x, y)` about `centre`, unwrapped (polar bed).
     Angle { centre: [f64; 2] },
+    /// A SCARA joint motor (motor `index` of the kinematics), solved from the geometry alone
+    /// (`crate::scara`); spans near the reach limits go through `inverse_near` as `General` does.
+    ScaraJoint {
+        geometry: ScaraGeometry,
+        joint: ScaraJoint,
+        index: usize,
+    },
     /// No closed form: motor `index` of the kinematics, through `inverse_near`.
     General { index: usize },
 }
@@ -49,6 +57,11 @@ impl MotorModel {
             MotorMap::Linear { coeffs } => MotorModel::Linear { coeffs },
             MotorMap::Radius { centre } => MotorModel::Radius { centre },
             MotorMap::Angle { centre } => MotorModel::Angle { centre },
+            MotorMap::ScaraJoint { geometry, joint } => MotorModel::ScaraJoint {
+                geometry,
+                joint,
+                index,
+            },
             MotorMap::General => MotorModel::General { index },
         }
     }
@@ -94,6 +107,8 @@ pub struct MotorStepper {
     dir_up: bool,
     filter: StepFilter,
     general: Option<GeneralState>,
+    /// A SCARA joint motor's last shoulder angle `q1` (unwrapped), for unwrapping the next evaluation.
+    scara_q1: f64,
     /// A polar bed's ideal angle at the end of the last piece (continuous with `commanded`): the angle the bed
     /// keeps while the toolhead sits at the centre, where the angle of the position itself is undefined.
     bed_angle: f64,
@@ -114,8 +129,16 @@ impl MotorStepper {
         config: StepGenConfig,
     ) -> Self {
         let general = match spec.model {
-            MotorModel::General { index } => Some(GeneralState::new(index, start_motors)),
+            MotorModel::General { index } | MotorModel::ScaraJoint { index, .. } => {
+                Some(GeneralState::new(index, start_motors))
+            }
             _ => None,
+        };
+        let scara_q1 = match spec.model {
+            MotorModel::ScaraJoint { geometry, .. } => start_motors
+                .get(kinematics::scara::SHOULDER)
+                .map_or(0.0, |a| a - geometry.shoulder_zero()),
+            _ => 0.0,
         };
         let (step_sin, step_cos) = spec.step_distance.sin_cos();
         MotorStepper {
@@ -126,6 +149,7 @@ impl MotorStepper {
             dir_up: false,
             filter: StepFilter::new(config.clock_hz, config.filter_time),
             general,
+            scara_q1,
             bed_angle: start_position,
             step_rotation: [step_cos, step_sin],
             batch: [0.0; STEP_BATCH],
@@ -171,6 +195,9 @@ impl MotorStepper {
                 MotorModel::Linear { coeffs } => self.linear_span(piece, span, coeffs, sink),
                 MotorModel::Radius { centre } => self.radius_span(piece, span, centre, sink),
                 MotorModel::Angle { centre } => self.angle_span(piece, span, centre, sink)?,
+                MotorModel::ScaraJoint {
+                    geometry, joint, ..
+                } => self.scara_span(piece, span, geometry, joint, kin, sink)?,
                 MotorModel::General { .. } => self.general_span(piece, span, kin, sink)?,
             }
         }
@@ -344,6 +371,14 @@ impl MotorStepper {
         self.general.as_mut()
     }
 
+    pub(crate) fn scara_q1(&self) -> f64 {
+        self.scara_q1
+    }
+
+    pub(crate) fn set_scara_q1(&mut self, q1: f64) {
+        self.scara_q1 = q1;
+    }
+
     pub(crate) fn name(&self) -> &str {
         &self.spec.name
     }
@@ -351,7 +386,7 @@ impl MotorStepper {
     /// Steps of a stretch where the position moves monotonically from `fa` (at `t_a`) to `fb`.
     /// `time_at_level` maps a position level between them to a time relative to the piece start.
     #[inline]
-    fn monotonic<S: StepSink + ?Sized, I: LevelInverse>(
+    pub(crate) fn monotonic<S: StepSink + ?Sized, I: LevelInverse>(
         &mut self,
         fa: f64,
         fb: f64,

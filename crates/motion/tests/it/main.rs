@@ -3,3 +3,4 @@
 mod centre;
 mod golden;
 mod limits;
+mod scara_poses;

@@ -37,7 +37,8 @@ pub fn polar(step_bed: f64, step_arm: f64, step_z: f64) -> Box<dyn Kinematics> {
     kinematics::build(&MachineParams::Polar(params)).expect("valid polar parameters")
 }
 
-/// The FEKT-SCARA fork's kinematics (golden/README.md): left branch, `b = q2 + q1/ecr`.
+/// The FEKT-SCARA fork's kinematics (golden/README.md): left branch, `b = q2 + q1/ecr`, with the fork's cos
+/// quirk (its joints then go through the general solver).
 pub fn scara_fekt(
     step_a: f64,
     step_b: f64,
@@ -46,6 +47,21 @@ pub fn scara_fekt(
     l2: f64,
     offset: [f64; 2],
     ecr: f64,
+) -> Box<dyn Kinematics> {
+    scara_fekt_arm(step_a, step_b, step_z, l1, l2, offset, ecr, true)
+}
+
+/// The FEKT arm, with or without the fork's cos quirk (without it the joints use stepgen's SCARA solver).
+#[allow(clippy::too_many_arguments)]
+pub fn scara_fekt_arm(
+    step_a: f64,
+    step_b: f64,
+    step_z: f64,
+    l1: f64,
+    l2: f64,
+    offset: [f64; 2],
+    ecr: f64,
+    cos_quirk: bool,
 ) -> Box<dyn Kinematics> {
     let params = ScaraParams {
         shoulder_stepper: stepper("stepper_a", step_a),
@@ -69,7 +85,7 @@ pub fn scara_fekt(
     Box::new(
         Scara::new(params)
             .expect("valid scara parameters")
-            .with_fekt_cos_quirk(true),
+            .with_fekt_cos_quirk(cos_quirk),
     )
 }
 

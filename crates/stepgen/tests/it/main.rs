@@ -4,3 +4,4 @@ mod closed_form;
 mod golden;
 mod machines;
 mod properties;
+mod scara_exact;

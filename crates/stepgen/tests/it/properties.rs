@@ -200,7 +200,10 @@ fn check_general_motors(
     kin.inverse(start, &mut p0).expect("start reachable");
     kin.inverse_near(end, &p0, &mut p1).expect("end reachable");
     for motor in 0..count {
-        if !matches!(kin.motor_map(motor), kinematics::MotorMap::General) {
+        if !matches!(
+            kin.motor_map(motor),
+            kinematics::MotorMap::General | kinematics::MotorMap::ScaraJoint { .. }
+        ) {
             continue;
         }
         let step = kin.motors()[motor].step_distance;

@@ -2,7 +2,7 @@
 //! extrusion, XY travel, bounding box of extruding moves (arcs included exactly), layers, features.
 //! Memory is constant: one pass, nothing kept per line.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::BufRead;
 use std::sync::Arc;
 
@@ -70,7 +70,7 @@ pub struct Stats {
 #[derive(Debug, Clone, Default)]
 pub struct StatsCollector {
     stats: Stats,
-    codes: HashMap<(u8, u32, Option<u32>), u64>,
+    codes: CodeCounts,
     position: Position,
     /// Z of the current extrusion level, and whether the previous move extruded.
     level_z: Option<f64>,
@@ -93,13 +93,25 @@ impl StatsCollector {
                 letter,
                 major,
                 minor,
-            }) => *self.codes.entry((letter, major, minor)).or_default() += 1,
+            }) => self.codes.add(letter, major, minor),
             Some(CommandWord::Extended) => {
                 let name = line.command_text().unwrap_or_default().to_ascii_uppercase();
                 *self.stats.commands.entry(name).or_default() += 1;
             }
             None => {}
         }
+    }
+
+    /// Counts a line the interpreter's fast path took, and accounts for the command it gave.
+    fn add_fast_line(&mut self, command: Option<&Command>) {
+        self.stats.lines += 1;
+        let Some(command) = command else {
+            return;
+        };
+        if let Some(major) = fast_line_code(command) {
+            self.codes.add(b'G', major, None);
+        }
+        self.add_command(command);
     }
 
     /// Accounts for one interpreted command.
@@ -219,7 +231,7 @@ impl StatsCollector {
 
     /// The summary so far.
     pub fn finish(mut self, warnings: u64) -> Stats {
-        for ((letter, major, minor), count) in self.codes.drain() {
+        for ((letter, major, minor), count) in self.codes.counts() {
             let name = match minor {
                 Some(minor) => format!("{}{major}.{minor}", letter as char),
                 None => format!("{}{major}", letter as char),
@@ -236,13 +248,108 @@ impl StatsCollector {
     }
 }
 
+/// The G code of a line the interpreter's fast path took, known from the command it gave: that
+/// path takes only plain `G0`/`G1`/`G2`/`G3`/`G92` lines, blank lines and comment-only lines (whose
+/// slicer metadata is a [`Command::Meta`], no command word). `file_stats_checked_against_the_general_path`
+/// keeps this in step with the fast path.
+fn fast_line_code(command: &Command) -> Option<u32> {
+    match command {
+        Command::Move(m) => Some(if m.rapid { 0 } else { 1 }),
+        Command::Arc(arc) => Some(if arc.clockwise { 2 } else { 3 }),
+        Command::SetPosition { .. } => Some(92),
+        other => {
+            debug_assert!(
+                matches!(other, Command::Meta(_)),
+                "the fast path gave {other:?}"
+            );
+            None
+        }
+    }
+}
+
+/// G and M codes below this without a minor number (all a slicer writes) are counted in a flat
+/// table; others in a map.
+const TABLE_CODES: u32 = 1024;
+
+/// Command lines by code. A table, not a hash map: counting is one index per line instead of
+/// hashing a key on every command line of the file.
+#[derive(Debug, Clone)]
+struct CodeCounts {
+    /// `G0..G1023` then `M0..M1023`.
+    table: Vec<u64>,
+    rest: BTreeMap<(u8, u32, Option<u32>), u64>,
+}
+
+impl Default for CodeCounts {
+    fn default() -> Self {
+        CodeCounts {
+            table: vec![0; 2 * TABLE_CODES as usize],
+            rest: BTreeMap::new(),
+        }
+    }
+}
+
+impl CodeCounts {
+    #[inline]
+    fn add(&mut self, letter: u8, major: u32, minor: Option<u32>) {
+        let row = match letter {
+            b'G' => 0,
+            b'M' => TABLE_CODES,
+            _ => u32::MAX,
+        };
+        if minor.is_none() && major < TABLE_CODES && row != u32::MAX {
+            self.table[(row + major) as usize] += 1;
+        } else {
+            *self.rest.entry((letter, major, minor)).or_default() += 1;
+        }
+    }
+
+    /// Every code counted at least once, with its count.
+    fn counts(&self) -> impl Iterator<Item = ((u8, u32, Option<u32>), u64)> + '_ {
+        let table = self
+            .table
+            .iter()
+            .zip(0u32..)
+            .filter(|(count, _)| **count > 0);
+        let table = table.map(|(&count, index)| {
+            let letter = if index < TABLE_CODES { b'G' } else { b'M' };
+            ((letter, index % TABLE_CODES, None), count)
+        });
+        table.chain(self.rest.iter().map(|(&code, &count)| (code, count)))
+    }
+}
+
 /// Summarises a whole input; stops at the first error.
 pub fn file_stats(input: impl BufRead, source: impl Into<Arc<str>>) -> Result<Stats, GcodeError> {
+    stats_of(input, source, true)
+}
+
+/// [`file_stats`]; with `fast_lines`, the lines the interpreter's fast path takes are neither lexed
+/// nor interpreted a second time (the path [`crate::Commands`] takes; off only in tests, to compare).
+fn stats_of(
+    input: impl BufRead,
+    source: impl Into<Arc<str>>,
+    fast_lines: bool,
+) -> Result<Stats, GcodeError> {
     let mut reader = Reader::new(input, source);
     let source = Arc::clone(reader.source());
     let mut interpreter = Interpreter::new(InterpreterOptions::default());
     let mut collector = StatsCollector::new();
-    while let Some(line) = reader.next_line() {
+    loop {
+        // The interpreter's queue is empty here (drained after every general line), as the fast
+        // path requires for a line to give the command the general path would.
+        if fast_lines
+            && reader
+                .take_line_with(|bytes, number| interpreter.fast_line(bytes, number))
+                .is_some()
+        {
+            let command = interpreter.take_fast_command();
+            collector.add_fast_line(command.as_ref().map(|c| &c.value));
+            continue;
+        }
+        let Some(line) = reader.next_line() else {
+            break;
+        };
         let line = line?;
         collector.add_line(&line);
         interpreter.interpret_line(&line, &source)?;
@@ -292,6 +399,85 @@ mod tests {
         let bbox = stats.extrusion_bbox.expect("bbox");
         assert!((bbox.max[1] - 5.0).abs() < 1e-12 && bbox.min[1].abs() < 1e-12);
         assert!((stats.xy_travel - (10.0 + 5.0 * std::f64::consts::PI)).abs() < 1e-12);
+    }
+
+    /// Both paths, as text (an error included): they must agree to the bit.
+    fn both_paths(text: &[u8], capacity: usize) -> (String, String) {
+        let fast = stats_of(std::io::BufReader::with_capacity(capacity, text), "t", true);
+        let general = stats_of(text, "t", false);
+        (format!("{fast:?}"), format!("{general:?}"))
+    }
+
+    #[test]
+    fn file_stats_checked_against_the_general_path() {
+        let text = "G90\nG0 X1 Y1\ng1 X2 E1\nG2 X3 Y2 I1\nG3 X2 Y1 J-1 E2\nG92 E0\nG92\n\
+                    ;TYPE:Wall\n;LAYER_CHANGE\n;Z:0.2\nG1 Z0.2\nM104 S200\nG92.1\nG01 X1\n\n; c\n";
+        for capacity in [1, 7, 64, 1 << 16] {
+            let (fast, general) = both_paths(text.as_bytes(), capacity);
+            assert_eq!(fast, general, "buffer of {capacity} bytes");
+        }
+        let stats = file_stats(text.as_bytes(), "t").expect("stats");
+        let count = |name: &str| stats.commands.get(name).copied();
+        assert_eq!(
+            [
+                count("G0"),
+                count("G1"),
+                count("G2"),
+                count("G3"),
+                count("G92")
+            ],
+            [Some(1), Some(3), Some(1), Some(1), Some(2)]
+        );
+        assert_eq!((count("G92.1"), count("M104")), (Some(1), Some(1)));
+    }
+
+    #[test]
+    fn file_stats_on_the_corpus_as_the_general_path_gives() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus");
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            eprintln!("{} absent: skipped", dir.display());
+            return;
+        };
+        for path in entries.filter_map(Result::ok).map(|e| e.path()) {
+            let text = std::fs::read(&path).expect("corpus file reads");
+            let (fast, general) = both_paths(&text, 1 << 16);
+            assert!(fast == general, "{}", path.display());
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn file_stats_as_the_general_path_gives_on_any_lines(
+            lines in proptest::collection::vec(
+                (
+                    proptest::sample::select(vec![
+                        "G1", "G0", "g1", "G01", "G1.5", "G2", "G3", "g2", "G92", "g92 E-1",
+                        "G92.1", "G920", "M83", "M82", "G91", "G90", "G4 P1", "M104 S1",
+                        "SET_FAN_SPEED FAN=a", ";LAYER_CHANGE", ";Z:0.4", ";TYPE:Wall", "",
+                        "; c", "G1 ;c", ";LAYER:3", "; feature skirt", "G17", "G18",
+                    ]),
+                    proptest::collection::vec(
+                        proptest::sample::select(vec![
+                            " X1.5", " Y-2", " Z.3", " E0.5", " E-1.25", " F1800", " I1",
+                            " J-1", " X", " Q1", " ;c", "  ",
+                        ]),
+                        0..4,
+                    ),
+                    proptest::sample::select(vec!["\n", "\r\n", "\r"]),
+                ),
+                0..16,
+            ),
+            capacity in 1usize..48,
+        ) {
+            let mut text = String::new();
+            for (command, words, end) in &lines {
+                text.push_str(command);
+                text.extend(words.iter().copied());
+                text.push_str(end);
+            }
+            let (fast, general) = both_paths(text.as_bytes(), capacity);
+            proptest::prop_assert_eq!(fast, general);
+        }
     }
 
     #[test]

@@ -75,6 +75,8 @@ pub struct StatsCollector {
     /// Z of the current extrusion level, and whether the previous move extruded.
     level_z: Option<f64>,
     last_extruded: bool,
+    /// `position` is already in the bounding box (the end of an extruding move or arc).
+    position_included: bool,
     /// XY steps whose lengths are not yet in [`Stats::xy_travel`] (see [`Self::flush_xy_travel`]).
     xy_pending: Vec<[f64; 2]>,
 }
@@ -131,9 +133,14 @@ impl StatsCollector {
                 let moved = step[0] != 0.0 || step[1] != 0.0;
                 let extruding = self.is_extruding(&start, &m.target, moved);
                 if extruding {
-                    self.include(&start);
+                    // Including a point twice changes nothing: an extrusion run costs one point
+                    // per move instead of two.
+                    if !self.position_included {
+                        self.include(&start);
+                    }
                     self.include(&m.target);
                 }
+                self.position_included = extruding;
                 self.level(extruding, m.target[2]);
                 self.position = m.target;
             }
@@ -146,10 +153,12 @@ impl StatsCollector {
                 if extruding {
                     self.include_arc(arc);
                 }
+                self.position_included = extruding;
                 self.level(extruding, arc.target[2]);
                 self.position = arc.target;
             }
             Command::SetKinematicPosition { position } => {
+                self.position_included = false;
                 for (axis, value) in position.iter().enumerate() {
                     if let Some(value) = value {
                         self.position[axis] = *value;

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::command::{Arc as ArcMove, Command, Meta, Position};
+use crate::command::{Arc as ArcMove, Command, Meta, Move, Position};
 use crate::error::GcodeError;
 use crate::interp::{Interpreter, InterpreterOptions};
 use crate::lexer::{CommandWord, Line};
@@ -109,54 +109,40 @@ impl StatsCollector {
         }
     }
 
-    /// Counts a line the interpreter's fast path took, and accounts for the command it gave.
+    /// Counts a line the interpreter's fast path took and accounts for the command it gave, in one
+    /// dispatch: that path takes only plain `G0`/`G1`/`G2`/`G3`/`G92` lines, blank lines and
+    /// comment-only lines (whose slicer metadata is a [`Command::Meta`], no command word), so the
+    /// command tells the line's G code. `file_stats_checked_against_the_general_path` keeps this in
+    /// step with the fast path.
+    #[inline]
     fn add_fast_line(&mut self, command: Option<&Command>) {
         self.stats.lines += 1;
-        let Some(command) = command else {
-            return;
-        };
-        if let Some(major) = fast_line_code(command) {
-            self.codes.add(b'G', major, None);
+        match command {
+            None => {}
+            Some(Command::Move(m)) => {
+                self.codes.add_g(if m.rapid { 0 } else { 1 });
+                self.add_move(m);
+            }
+            Some(Command::Arc(arc)) => {
+                self.codes.add_g(if arc.clockwise { 2 } else { 3 });
+                self.add_arc(arc);
+            }
+            Some(Command::SetPosition { .. }) => self.codes.add_g(92),
+            Some(other) => {
+                debug_assert!(
+                    matches!(other, Command::Meta(_)),
+                    "the fast path gave {other:?}"
+                );
+                self.add_command(other);
+            }
         }
-        self.add_command(command);
     }
 
     /// Accounts for one interpreted command.
     pub fn add_command(&mut self, command: &Command) {
         match command {
-            Command::Move(m) => {
-                self.stats.moves += 1;
-                let start = self.position;
-                let step = [m.target[0] - start[0], m.target[1] - start[1]];
-                self.travel(&start, &m.target, step);
-                // `hypot > 0` without the length, which is summed later.
-                let moved = step[0] != 0.0 || step[1] != 0.0;
-                let extruding = self.is_extruding(&start, &m.target, moved);
-                if extruding {
-                    // Including a point twice changes nothing: an extrusion run costs one point
-                    // per move instead of two.
-                    if !self.position_included {
-                        self.include(&start);
-                    }
-                    self.include(&m.target);
-                }
-                self.position_included = extruding;
-                self.level(extruding, m.target[2]);
-                self.position = m.target;
-            }
-            Command::Arc(arc) => {
-                self.stats.arcs += 1;
-                let xy = arc.length_xy();
-                // A step of (length, 0) adds exactly `length`.
-                self.travel(&arc.start, &arc.target, [xy, 0.0]);
-                let extruding = self.is_extruding(&arc.start, &arc.target, xy > 0.0);
-                if extruding {
-                    self.include_arc(arc);
-                }
-                self.position_included = extruding;
-                self.level(extruding, arc.target[2]);
-                self.position = arc.target;
-            }
+            Command::Move(m) => self.add_move(m),
+            Command::Arc(arc) => self.add_arc(arc),
             Command::SetKinematicPosition { position } => {
                 self.position_included = false;
                 for (axis, value) in position.iter().enumerate() {
@@ -171,6 +157,45 @@ impl StatsCollector {
             }
             _ => {}
         }
+    }
+
+    #[inline]
+    fn add_move(&mut self, m: &Move) {
+        self.stats.moves += 1;
+        let start = self.position;
+        let step = [m.target[0] - start[0], m.target[1] - start[1]];
+        self.travel(&start, &m.target, step);
+        // `hypot > 0` without the length, which is summed later.
+        let moved = step[0] != 0.0 || step[1] != 0.0;
+        let extruding = self.is_extruding(&start, &m.target, moved);
+        if extruding {
+            // Including a point twice changes nothing: an extrusion run costs one point per move
+            // instead of two.
+            if !self.position_included {
+                self.include(&start);
+            }
+            self.include(&m.target);
+        }
+        self.position_included = extruding;
+        self.level(extruding, m.target[2]);
+        self.position = m.target;
+    }
+
+    fn add_arc(&mut self, arc: &ArcMove) {
+        self.stats.arcs += 1;
+        // `arc.length_xy()`, with radius and sweep (a hypot and an atan2 each) computed once for
+        // the length and the bounding box.
+        let (radius, sweep) = (arc.radius(), arc.sweep());
+        let xy = radius * sweep;
+        // A step of (length, 0) adds exactly `length`.
+        self.travel(&arc.start, &arc.target, [xy, 0.0]);
+        let extruding = self.is_extruding(&arc.start, &arc.target, xy > 0.0);
+        if extruding {
+            self.include_arc(arc, radius, sweep);
+        }
+        self.position_included = extruding;
+        self.level(extruding, arc.target[2]);
+        self.position = arc.target;
     }
 
     /// Books a move's XY step (its length added later) and its filament.
@@ -235,12 +260,11 @@ impl StatsCollector {
     }
 
     /// End points plus every axis extreme (0°, 90°, 180°, 270°) the arc passes.
-    fn include_arc(&mut self, arc: &ArcMove) {
+    /// (`r` and `sweep`: the arc's radius and sweep.)
+    fn include_arc(&mut self, arc: &ArcMove, r: f64, sweep: f64) {
         self.include(&arc.start);
         self.include(&arc.target);
-        let r = arc.radius();
         let start_angle = (arc.start[1] - arc.centre[1]).atan2(arc.start[0] - arc.centre[0]);
-        let sweep = arc.sweep();
         let z_mid = 0.5 * (arc.start[2] + arc.target[2]);
         for quarter in 0..4 {
             let angle = f64::from(quarter) * std::f64::consts::FRAC_PI_2;
@@ -295,25 +319,6 @@ fn xy_length(dx: f64, dy: f64) -> f64 {
     }
 }
 
-/// The G code of a line the interpreter's fast path took, known from the command it gave: that
-/// path takes only plain `G0`/`G1`/`G2`/`G3`/`G92` lines, blank lines and comment-only lines (whose
-/// slicer metadata is a [`Command::Meta`], no command word). `file_stats_checked_against_the_general_path`
-/// keeps this in step with the fast path.
-fn fast_line_code(command: &Command) -> Option<u32> {
-    match command {
-        Command::Move(m) => Some(if m.rapid { 0 } else { 1 }),
-        Command::Arc(arc) => Some(if arc.clockwise { 2 } else { 3 }),
-        Command::SetPosition { .. } => Some(92),
-        other => {
-            debug_assert!(
-                matches!(other, Command::Meta(_)),
-                "the fast path gave {other:?}"
-            );
-            None
-        }
-    }
-}
-
 /// G and M codes below this without a minor number (all a slicer writes) are counted in a flat
 /// table; others in a map.
 const TABLE_CODES: u32 = 1024;
@@ -349,6 +354,12 @@ impl CodeCounts {
         } else {
             *self.rest.entry((letter, major, minor)).or_default() += 1;
         }
+    }
+
+    /// One more `G<major>` (`major` below [`TABLE_CODES`]).
+    #[inline]
+    fn add_g(&mut self, major: u32) {
+        self.table[major as usize] += 1;
     }
 
     /// Every code counted at least once, with its count.

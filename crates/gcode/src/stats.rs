@@ -199,6 +199,7 @@ impl StatsCollector {
     }
 
     /// Books a move's XY step (its length added later) and its filament.
+    #[inline]
     fn travel(&mut self, start: &Position, end: &Position, xy_step: [f64; 2]) {
         self.xy_pending.push(xy_step);
         if self.xy_pending.len() >= XY_BATCH {
@@ -236,6 +237,7 @@ impl StatsCollector {
     /// as adding each at its move). Why batched: between two moves' `hypot` calls lies a line's
     /// parsing, and each call's long dependency chain (square root, division) stalls it; a loop of
     /// nothing but independent calls lets the processor overlap them.
+    #[inline(never)]
     fn flush_xy_travel(&mut self) {
         for [dx, dy] in self.xy_pending.drain(..) {
             self.stats.xy_travel += xy_length(dx, dy);

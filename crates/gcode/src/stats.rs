@@ -308,8 +308,8 @@ impl StatsCollector {
 }
 
 /// `dx.hypot(dy)`, to the bit, without the library call where one side is zero (a move along X or
-/// Y, a Z or E-only move: many of a slicer's moves): C's Annex F defines `hypot(x, ±0)` as `|x|`.
-/// The call costs a fifth of `jointspace stats`' time otherwise.
+/// Y, a Z or E-only move: about a tenth of the corpus' moves): C's Annex F defines `hypot(x, ±0)`
+/// as `|x|`. The call is the largest cost the statistics add to the reading.
 #[inline]
 fn xy_length(dx: f64, dy: f64) -> f64 {
     if dy == 0.0 {
@@ -537,6 +537,20 @@ mod tests {
             }
             let (fast, general) = both_paths(text.as_bytes(), capacity);
             proptest::prop_assert_eq!(fast, general);
+        }
+    }
+
+    #[test]
+    fn xy_length_is_hypot_to_the_bit() {
+        let values = [0.0, -0.0, 3.0, -4.5, 1e-310, -1e300, 0.1, f64::MIN_POSITIVE];
+        for dx in values {
+            for dy in values {
+                assert_eq!(
+                    xy_length(dx, dy).to_bits(),
+                    dx.hypot(dy).to_bits(),
+                    "({dx}, {dy})"
+                );
+            }
         }
     }
 

@@ -1,19 +1,27 @@
 //! Opening inputs: a G-code file (or `-` for standard input) behind a buffered, progress-reporting reader.
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufReader, Read};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+/// A G-code input: the buffer is concrete and only the source behind it is dynamic, so the reader's
+/// `fill_buf`/`consume` on every line are direct (inlined) calls, and only a refill (one per
+/// [`BUFFER_BYTES`]) goes through a virtual call.
+pub type GcodeInput = BufReader<Box<dyn Read>>;
+
+/// Read size: few system calls, and the buffer stays in the cache (256 KiB measured no faster for `stats`).
+const BUFFER_BYTES: usize = 1 << 16;
+
 /// A buffered reader over a file or stdin, with a progress bar on stderr for a file whose reading takes more
 /// than [`PROGRESS_DELAY`] (hidden automatically when stderr is not a terminal).
-pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, ProgressBar)> {
+pub fn open_gcode(path: &Path) -> anyhow::Result<(GcodeInput, String, ProgressBar)> {
     crate::output::register_input(path);
     if path == Path::new("-") {
         let bar = ProgressBar::hidden();
-        let reader = Interruptible(std::io::stdin());
+        let reader: Box<dyn Read> = Box::new(Interruptible(std::io::stdin()));
         return Ok((
-            Box::new(BufReader::with_capacity(1 << 16, reader)),
+            BufReader::with_capacity(BUFFER_BYTES, reader),
             "<stdin>".into(),
             bar,
         ));
@@ -36,7 +44,7 @@ pub fn open_gcode(path: &Path) -> anyhow::Result<(Box<dyn BufRead>, String, Prog
         shown: false,
     }));
     Ok((
-        Box::new(BufReader::with_capacity(1 << 16, reader)),
+        BufReader::with_capacity(BUFFER_BYTES, reader),
         path.display().to_string(),
         bar,
     ))

@@ -1,5 +1,7 @@
 //! Reader throughput on ≈50 MB of real slicer G-code (the corpus repeated in memory; generated G-code
-//! when `../shared` is absent): lexing alone, and lexing + interpretation.
+//! when `../shared` is absent): lexing alone, lexing + interpretation (the reader), and lexing +
+//! interpretation + statistics (`jointspace stats`), side by side in one run so that their ratio holds
+//! on a machine whose absolute speed drifts.
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -8,7 +10,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{lex_and_interpret, lex_only};
+use common::{lex_and_interpret, lex_interpret_and_stats, lex_only};
 
 const TARGET_BYTES: usize = 50 << 20;
 
@@ -75,6 +77,9 @@ fn bench(c: &mut Criterion) {
     group.bench_function("lex", |b| b.iter(|| black_box(lex_only(black_box(&data)))));
     group.bench_function("lex+interpret", |b| {
         b.iter(|| black_box(lex_and_interpret(black_box(&data))))
+    });
+    group.bench_function("lex+interpret+stats", |b| {
+        b.iter(|| black_box(lex_interpret_and_stats(black_box(&data))))
     });
     group.finish();
 }

@@ -1,5 +1,5 @@
 //! The reader benchmark's work outside criterion, for profiling:
-//! `reader_profile lex|interpret PASSES FILE...` reads the files once into memory (each followed by a
+//! `reader_profile lex|interpret|stats PASSES FILE...` reads the files once into memory (each followed by a
 //! newline, as the bench does) and runs PASSES passes over them, printing the best pass in MB/s.
 //! With PASSES = 1 under `valgrind --tool=callgrind` it gives repeatable instruction counts, which
 //! wall-clock time on a shared machine does not.
@@ -9,7 +9,7 @@ use std::time::Instant;
 #[path = "../benches/common/mod.rs"]
 mod common;
 
-use common::{lex_and_interpret, lex_only};
+use common::{lex_and_interpret, lex_interpret_and_stats, lex_only};
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -26,6 +26,7 @@ fn main() {
         let start = Instant::now();
         count = std::hint::black_box(match mode.as_str() {
             "lex" => lex_only(std::hint::black_box(&data)),
+            "stats" => lex_interpret_and_stats(std::hint::black_box(&data)) as usize,
             _ => lex_and_interpret(std::hint::black_box(&data)),
         });
         best = best.min(start.elapsed().as_secs_f64());

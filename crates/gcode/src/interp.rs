@@ -166,6 +166,13 @@ impl Interpreter {
         self.queue.pop_front()
     }
 
+    /// The command [`Self::fast_line`] left for the line it took last (none for a blank line or a
+    /// comment without metadata).
+    #[inline]
+    pub(crate) fn take_fast_command(&mut self) -> Option<Spanned<Command>> {
+        self.fast_command.take()
+    }
+
     /// End of input: emits a layer start still waiting for its Z.
     pub fn finish(&mut self) {
         self.flush_pending_layer();
@@ -479,7 +486,7 @@ impl Interpreter {
     /// ([`Self::comment_line`]). `bytes` run from the line's start on (past its
     /// end). Gives the line's length (up to its `\n` or `\r`) and leaves its command (if any) in
     /// `fast_command`, or gives `None` for the general path.
-    fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<usize> {
+    pub(crate) fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<usize> {
         let start = skip_blanks(bytes, 0);
         match *bytes.get(start)? {
             b'\n' | b'\r' => Some(start),

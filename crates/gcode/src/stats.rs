@@ -2,13 +2,13 @@
 //! extrusion, XY travel, bounding box of extruding moves (arcs included exactly), layers, features.
 //! Memory is constant: one pass, nothing kept per line.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::BufRead;
 use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::command::{Arc as ArcMove, Command, Meta, Position};
+use crate::command::{Arc as ArcMove, Command, Meta, Move, Position};
 use crate::error::GcodeError;
 use crate::interp::{Interpreter, InterpreterOptions};
 use crate::lexer::{CommandWord, Line};
@@ -70,12 +70,19 @@ pub struct Stats {
 #[derive(Debug, Clone, Default)]
 pub struct StatsCollector {
     stats: Stats,
-    codes: HashMap<(u8, u32, Option<u32>), u64>,
+    codes: CodeCounts,
     position: Position,
     /// Z of the current extrusion level, and whether the previous move extruded.
     level_z: Option<f64>,
     last_extruded: bool,
+    /// `position` is already in the bounding box (the end of an extruding move or arc).
+    position_included: bool,
+    /// XY steps whose lengths are not yet in [`Stats::xy_travel`] (see [`Self::flush_xy_travel`]).
+    xy_pending: Vec<[f64; 2]>,
 }
+
+/// How many XY steps [`StatsCollector`] holds before adding up their lengths.
+const XY_BATCH: usize = 256;
 
 /// A Z step (mm) between two extruding moves that starts a new level (smaller ones are a spiral's climb).
 const LEVEL_STEP: f64 = 0.02;
@@ -93,7 +100,7 @@ impl StatsCollector {
                 letter,
                 major,
                 minor,
-            }) => *self.codes.entry((letter, major, minor)).or_default() += 1,
+            }) => self.codes.add(letter, major, minor),
             Some(CommandWord::Extended) => {
                 let name = line.command_text().unwrap_or_default().to_ascii_uppercase();
                 *self.stats.commands.entry(name).or_default() += 1;
@@ -102,34 +109,42 @@ impl StatsCollector {
         }
     }
 
+    /// Counts a line the interpreter's fast path took and accounts for the command it gave, in one
+    /// dispatch: that path takes only plain `G0`/`G1`/`G2`/`G3`/`G92` lines, blank lines and
+    /// comment-only lines (whose slicer metadata is a [`Command::Meta`], no command word), so the
+    /// command tells the line's G code. `file_stats_checked_against_the_general_path` keeps this in
+    /// step with the fast path.
+    #[inline]
+    fn add_fast_line(&mut self, command: Option<&Command>) {
+        self.stats.lines += 1;
+        match command {
+            None => {}
+            Some(Command::Move(m)) => {
+                self.codes.add_g(if m.rapid { 0 } else { 1 });
+                self.add_move(m);
+            }
+            Some(Command::Arc(arc)) => {
+                self.codes.add_g(if arc.clockwise { 2 } else { 3 });
+                self.add_arc(arc);
+            }
+            Some(Command::SetPosition { .. }) => self.codes.add_g(92),
+            Some(other) => {
+                debug_assert!(
+                    matches!(other, Command::Meta(_)),
+                    "the fast path gave {other:?}"
+                );
+                self.add_command(other);
+            }
+        }
+    }
+
     /// Accounts for one interpreted command.
     pub fn add_command(&mut self, command: &Command) {
         match command {
-            Command::Move(m) => {
-                self.stats.moves += 1;
-                let start = self.position;
-                let xy = (m.target[0] - start[0]).hypot(m.target[1] - start[1]);
-                self.travel(&start, &m.target, xy);
-                let extruding = self.is_extruding(&start, &m.target, xy);
-                if extruding {
-                    self.include(&start);
-                    self.include(&m.target);
-                }
-                self.level(extruding, m.target[2]);
-                self.position = m.target;
-            }
-            Command::Arc(arc) => {
-                self.stats.arcs += 1;
-                let xy = arc.length_xy();
-                self.travel(&arc.start, &arc.target, xy);
-                let extruding = self.is_extruding(&arc.start, &arc.target, xy);
-                if extruding {
-                    self.include_arc(arc);
-                }
-                self.level(extruding, arc.target[2]);
-                self.position = arc.target;
-            }
+            Command::Move(m) => self.add_move(m),
+            Command::Arc(arc) => self.add_arc(arc),
             Command::SetKinematicPosition { position } => {
+                self.position_included = false;
                 for (axis, value) in position.iter().enumerate() {
                     if let Some(value) = value {
                         self.position[axis] = *value;
@@ -144,8 +159,52 @@ impl StatsCollector {
         }
     }
 
-    fn travel(&mut self, start: &Position, end: &Position, xy: f64) {
-        self.stats.xy_travel += xy;
+    #[inline]
+    fn add_move(&mut self, m: &Move) {
+        self.stats.moves += 1;
+        let start = self.position;
+        let step = [m.target[0] - start[0], m.target[1] - start[1]];
+        self.travel(&start, &m.target, step);
+        // `hypot > 0` without the length, which is summed later.
+        let moved = step[0] != 0.0 || step[1] != 0.0;
+        let extruding = self.is_extruding(&start, &m.target, moved);
+        if extruding {
+            // Including a point twice changes nothing: an extrusion run costs one point per move
+            // instead of two.
+            if !self.position_included {
+                self.include(&start);
+            }
+            self.include(&m.target);
+        }
+        self.position_included = extruding;
+        self.level(extruding, m.target[2]);
+        self.position = m.target;
+    }
+
+    fn add_arc(&mut self, arc: &ArcMove) {
+        self.stats.arcs += 1;
+        // `arc.length_xy()`, with radius and sweep (a hypot and an atan2 each) computed once for
+        // the length and the bounding box.
+        let (radius, sweep) = (arc.radius(), arc.sweep());
+        let xy = radius * sweep;
+        // A step of (length, 0) adds exactly `length`.
+        self.travel(&arc.start, &arc.target, [xy, 0.0]);
+        let extruding = self.is_extruding(&arc.start, &arc.target, xy > 0.0);
+        if extruding {
+            self.include_arc(arc, radius, sweep);
+        }
+        self.position_included = extruding;
+        self.level(extruding, arc.target[2]);
+        self.position = arc.target;
+    }
+
+    /// Books a move's XY step (its length added later) and its filament.
+    #[inline]
+    fn travel(&mut self, start: &Position, end: &Position, xy_step: [f64; 2]) {
+        self.xy_pending.push(xy_step);
+        if self.xy_pending.len() >= XY_BATCH {
+            self.flush_xy_travel();
+        }
         let de = end[3] - start[3];
         if de > 0.0 {
             self.stats.total_extrusion += de;
@@ -174,8 +233,20 @@ impl StatsCollector {
         self.last_extruded = extruding;
     }
 
-    fn is_extruding(&mut self, start: &Position, end: &Position, xy: f64) -> bool {
-        let extruding = end[3] > start[3] && xy > 0.0;
+    /// Adds the pending XY steps' lengths to the travel, in file order (the same sum, to the bit,
+    /// as adding each at its move). Why batched: between two moves' `hypot` calls lies a line's
+    /// parsing, and each call's long dependency chain (square root, division) stalls it; a loop of
+    /// nothing but independent calls lets the processor overlap them.
+    #[inline(never)]
+    fn flush_xy_travel(&mut self) {
+        for [dx, dy] in self.xy_pending.drain(..) {
+            self.stats.xy_travel += xy_length(dx, dy);
+        }
+    }
+
+    /// Whether a move that `moved` in XY extruded (counted if so).
+    fn is_extruding(&mut self, start: &Position, end: &Position, moved: bool) -> bool {
+        let extruding = end[3] > start[3] && moved;
         if extruding {
             self.stats.extruding_moves += 1;
         }
@@ -191,12 +262,11 @@ impl StatsCollector {
     }
 
     /// End points plus every axis extreme (0°, 90°, 180°, 270°) the arc passes.
-    fn include_arc(&mut self, arc: &ArcMove) {
+    /// (`r` and `sweep`: the arc's radius and sweep.)
+    fn include_arc(&mut self, arc: &ArcMove, r: f64, sweep: f64) {
         self.include(&arc.start);
         self.include(&arc.target);
-        let r = arc.radius();
         let start_angle = (arc.start[1] - arc.centre[1]).atan2(arc.start[0] - arc.centre[0]);
-        let sweep = arc.sweep();
         let z_mid = 0.5 * (arc.start[2] + arc.target[2]);
         for quarter in 0..4 {
             let angle = f64::from(quarter) * std::f64::consts::FRAC_PI_2;
@@ -219,7 +289,8 @@ impl StatsCollector {
 
     /// The summary so far.
     pub fn finish(mut self, warnings: u64) -> Stats {
-        for ((letter, major, minor), count) in self.codes.drain() {
+        self.flush_xy_travel();
+        for ((letter, major, minor), count) in self.codes.counts() {
             let name = match minor {
                 Some(minor) => format!("{}{major}.{minor}", letter as char),
                 None => format!("{}{major}", letter as char),
@@ -236,13 +307,109 @@ impl StatsCollector {
     }
 }
 
+/// `dx.hypot(dy)`, to the bit, without the library call where one side is zero (a move along X or
+/// Y, a Z or E-only move: about a tenth of the corpus' moves): C's Annex F defines `hypot(x, ±0)`
+/// as `|x|`. The call is the largest cost the statistics add to the reading.
+#[inline]
+fn xy_length(dx: f64, dy: f64) -> f64 {
+    if dy == 0.0 {
+        dx.abs()
+    } else if dx == 0.0 {
+        dy.abs()
+    } else {
+        dx.hypot(dy)
+    }
+}
+
+/// G and M codes below this without a minor number (all a slicer writes) are counted in a flat
+/// table; others in a map.
+const TABLE_CODES: u32 = 1024;
+
+/// Command lines by code. A table, not a hash map: counting is one index per line instead of
+/// hashing a key on every command line of the file.
+#[derive(Debug, Clone)]
+struct CodeCounts {
+    /// `G0..G1023` then `M0..M1023`.
+    table: Vec<u64>,
+    rest: BTreeMap<(u8, u32, Option<u32>), u64>,
+}
+
+impl Default for CodeCounts {
+    fn default() -> Self {
+        CodeCounts {
+            table: vec![0; 2 * TABLE_CODES as usize],
+            rest: BTreeMap::new(),
+        }
+    }
+}
+
+impl CodeCounts {
+    #[inline]
+    fn add(&mut self, letter: u8, major: u32, minor: Option<u32>) {
+        let row = match letter {
+            b'G' => 0,
+            b'M' => TABLE_CODES,
+            _ => u32::MAX,
+        };
+        if minor.is_none() && major < TABLE_CODES && row != u32::MAX {
+            self.table[(row + major) as usize] += 1;
+        } else {
+            *self.rest.entry((letter, major, minor)).or_default() += 1;
+        }
+    }
+
+    /// One more `G<major>` (`major` below [`TABLE_CODES`]).
+    #[inline]
+    fn add_g(&mut self, major: u32) {
+        self.table[major as usize] += 1;
+    }
+
+    /// Every code counted at least once, with its count.
+    fn counts(&self) -> impl Iterator<Item = ((u8, u32, Option<u32>), u64)> + '_ {
+        let table = self
+            .table
+            .iter()
+            .zip(0u32..)
+            .filter(|(count, _)| **count > 0);
+        let table = table.map(|(&count, index)| {
+            let letter = if index < TABLE_CODES { b'G' } else { b'M' };
+            ((letter, index % TABLE_CODES, None), count)
+        });
+        table.chain(self.rest.iter().map(|(&code, &count)| (code, count)))
+    }
+}
+
 /// Summarises a whole input; stops at the first error.
 pub fn file_stats(input: impl BufRead, source: impl Into<Arc<str>>) -> Result<Stats, GcodeError> {
+    stats_of(input, source, true)
+}
+
+/// [`file_stats`]; with `fast_lines`, the lines the interpreter's fast path takes are neither lexed
+/// nor interpreted a second time (the path [`crate::Commands`] takes; off only in tests, to compare).
+fn stats_of(
+    input: impl BufRead,
+    source: impl Into<Arc<str>>,
+    fast_lines: bool,
+) -> Result<Stats, GcodeError> {
     let mut reader = Reader::new(input, source);
     let source = Arc::clone(reader.source());
     let mut interpreter = Interpreter::new(InterpreterOptions::default());
     let mut collector = StatsCollector::new();
-    while let Some(line) = reader.next_line() {
+    loop {
+        // The interpreter's queue is empty here (drained after every general line), as the fast
+        // path requires for a line to give the command the general path would.
+        if fast_lines
+            && reader
+                .take_line_with(|bytes, number| interpreter.fast_line(bytes, number))
+                .is_some()
+        {
+            let command = interpreter.take_fast_command();
+            collector.add_fast_line(command.as_ref().map(|c| &c.value));
+            continue;
+        }
+        let Some(line) = reader.next_line() else {
+            break;
+        };
         let line = line?;
         collector.add_line(&line);
         interpreter.interpret_line(&line, &source)?;
@@ -292,6 +459,99 @@ mod tests {
         let bbox = stats.extrusion_bbox.expect("bbox");
         assert!((bbox.max[1] - 5.0).abs() < 1e-12 && bbox.min[1].abs() < 1e-12);
         assert!((stats.xy_travel - (10.0 + 5.0 * std::f64::consts::PI)).abs() < 1e-12);
+    }
+
+    /// Both paths, as text (an error included): they must agree to the bit.
+    fn both_paths(text: &[u8], capacity: usize) -> (String, String) {
+        let fast = stats_of(std::io::BufReader::with_capacity(capacity, text), "t", true);
+        let general = stats_of(text, "t", false);
+        (format!("{fast:?}"), format!("{general:?}"))
+    }
+
+    #[test]
+    fn file_stats_checked_against_the_general_path() {
+        let text = "G90\nG0 X1 Y1\ng1 X2 E1\nG2 X3 Y2 I1\nG3 X2 Y1 J-1 E2\nG92 E0\nG92\n\
+                    ;TYPE:Wall\n;LAYER_CHANGE\n;Z:0.2\nG1 Z0.2\nM104 S200\nG92.1\nG01 X1\n\n; c\n";
+        for capacity in [1, 7, 64, 1 << 16] {
+            let (fast, general) = both_paths(text.as_bytes(), capacity);
+            assert_eq!(fast, general, "buffer of {capacity} bytes");
+        }
+        let stats = file_stats(text.as_bytes(), "t").expect("stats");
+        let count = |name: &str| stats.commands.get(name).copied();
+        assert_eq!(
+            [
+                count("G0"),
+                count("G1"),
+                count("G2"),
+                count("G3"),
+                count("G92")
+            ],
+            [Some(1), Some(3), Some(1), Some(1), Some(2)]
+        );
+        assert_eq!((count("G92.1"), count("M104")), (Some(1), Some(1)));
+    }
+
+    #[test]
+    fn file_stats_on_the_corpus_as_the_general_path_gives() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus");
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            eprintln!("{} absent: skipped", dir.display());
+            return;
+        };
+        for path in entries.filter_map(Result::ok).map(|e| e.path()) {
+            let text = std::fs::read(&path).expect("corpus file reads");
+            let (fast, general) = both_paths(&text, 1 << 16);
+            assert!(fast == general, "{}", path.display());
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn file_stats_as_the_general_path_gives_on_any_lines(
+            lines in proptest::collection::vec(
+                (
+                    proptest::sample::select(vec![
+                        "G1", "G0", "g1", "G01", "G1.5", "G2", "G3", "g2", "G92", "g92 E-1",
+                        "G92.1", "G920", "M83", "M82", "G91", "G90", "G4 P1", "M104 S1",
+                        "SET_FAN_SPEED FAN=a", ";LAYER_CHANGE", ";Z:0.4", ";TYPE:Wall", "",
+                        "; c", "G1 ;c", ";LAYER:3", "; feature skirt", "G17", "G18",
+                    ]),
+                    proptest::collection::vec(
+                        proptest::sample::select(vec![
+                            " X1.5", " Y-2", " Z.3", " E0.5", " E-1.25", " F1800", " I1",
+                            " J-1", " X", " Q1", " ;c", "  ",
+                        ]),
+                        0..4,
+                    ),
+                    proptest::sample::select(vec!["\n", "\r\n", "\r"]),
+                ),
+                0..16,
+            ),
+            capacity in 1usize..48,
+        ) {
+            let mut text = String::new();
+            for (command, words, end) in &lines {
+                text.push_str(command);
+                text.extend(words.iter().copied());
+                text.push_str(end);
+            }
+            let (fast, general) = both_paths(text.as_bytes(), capacity);
+            proptest::prop_assert_eq!(fast, general);
+        }
+    }
+
+    #[test]
+    fn xy_length_is_hypot_to_the_bit() {
+        let values = [0.0, -0.0, 3.0, -4.5, 1e-310, -1e300, 0.1, f64::MIN_POSITIVE];
+        for dx in values {
+            for dy in values {
+                assert_eq!(
+                    xy_length(dx, dy).to_bits(),
+                    dx.hypot(dy).to_bits(),
+                    "({dx}, {dy})"
+                );
+            }
+        }
     }
 
     #[test]

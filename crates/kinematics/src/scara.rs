@@ -545,7 +545,8 @@ impl ScaraGeometry {
     }
 }
 
-fn normalise(a: f64) -> f64 {
+/// Angle in `(−π, π]` (as [`ScaraGeometry::joints`] gives `q1`).
+pub fn normalise(a: f64) -> f64 {
     if a > PI {
         a - TAU
     } else if a <= -PI {

@@ -62,9 +62,14 @@ pub(crate) fn onto_centre(p: [f64; 4], turn: &CentreTurn) -> [f64; 4] {
     [turn.centre[0], turn.centre[1], p[2], p[3]]
 }
 
+/// The toolhead position `p` relative to the centre.
+pub(crate) fn ray(p: [f64; 4], turn: &CentreTurn) -> [f64; 2] {
+    [p[0] - turn.centre[0], p[1] - turn.centre[1]]
+}
+
 /// The bed angle (rad) at which the toolhead position `p` lies under the arm, or `None` on the centre.
 pub(crate) fn bed_angle(p: [f64; 4], turn: &CentreTurn) -> Option<f64> {
-    let (x, y) = (p[0] - turn.centre[0], p[1] - turn.centre[1]);
+    let [x, y] = ray(p, turn);
     (x != 0.0 || y != 0.0).then(|| y.atan2(x))
 }
 

@@ -87,9 +87,9 @@ pub struct Toolhead<'k, S: MoveSink> {
     /// Print time above which the next move checks for a pause (Klipper's `need_check_pause`).
     need_check_pause: f64,
     slow_moves: SlowMoves,
-    /// Polar machines: the bed angle (rad) the motors hold, the angle of the last position off the centre (or
-    /// where the last turn in place left it); on the centre the bed keeps it until it turns.
-    bed_angle: f64,
+    /// Polar machines: the last position off the centre, relative to it, whose angle is the bed angle the motors
+    /// hold (the angle itself is computed only when the bed must turn); on the centre the bed keeps it.
+    bed_ray: [f64; 2],
 }
 
 /// Klipper's motion-queuing bookkeeping: how far step generation has been flushed. In batch mode
@@ -126,7 +126,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             sink,
             lookahead: LookAhead::new(),
             commanded_pos: [0.0; 4],
-            bed_angle: 0.0,
+            bed_ray: [1.0, 0.0],
             print_time: 0.0,
             need_prime: true,
         }
@@ -198,7 +198,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             Passage::Leaves => {
                 self.commanded_pos = centre::onto_centre(start, turn);
                 if let Some(leaving) = centre::bed_angle(target, turn) {
-                    let angle = centre::turn_between(self.bed_angle, leaving);
+                    let holding = self.bed_ray[1].atan2(self.bed_ray[0]);
+                    let angle = centre::turn_between(holding, leaving);
                     self.turn_bed_at_centre(angle, turn, origin);
                 }
                 target
@@ -209,10 +210,16 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             }
         };
         self.move_straight(target, speed, origin)?;
-        if let Some(angle) = centre::bed_angle(self.commanded_pos, turn) {
-            self.bed_angle = angle;
-        }
+        self.note_bed_ray(turn);
         Ok(())
+    }
+
+    /// Off the centre, the bed holds the angle of the toolhead's position.
+    fn note_bed_ray(&mut self, turn: &CentreTurn) {
+        let ray = centre::ray(self.commanded_pos, turn);
+        if ray != [0.0, 0.0] {
+            self.bed_ray = ray;
+        }
     }
 
     /// A straight move, cut into spans where motor limits bind.
@@ -346,7 +353,6 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         self.sink.append(Queue::Toolhead, &mv);
         let end = start + mv.duration();
         self.print_time = end;
-        self.bed_angle += angle;
         self.note_motion_queued(end);
     }
 
@@ -404,10 +410,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let need = self.clock.need_step_gen_time;
         self.advance_flush_time(need, 0.0);
         self.commanded_pos[..3].copy_from_slice(&xyz);
-        if let Some(turn) = self.config.centre_turn
-            && let Some(angle) = centre::bed_angle(self.commanded_pos, &turn)
-        {
-            self.bed_angle = angle;
+        if let Some(turn) = self.config.centre_turn {
+            self.note_bed_ray(&turn);
         }
         self.sink.set_position(xyz, self.commanded_pos[3]);
     }

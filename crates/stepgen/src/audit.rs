@@ -4,8 +4,6 @@
 
 use kinematics::{Kinematics, Vec3};
 
-use crate::sink::StepSink;
-
 /// The first thing found wrong in a step stream.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum StepProblem {
@@ -44,70 +42,41 @@ impl StepProblem {
     }
 }
 
-/// Watches one motor's steps (a [`StepSink`]) and keeps the first problem.
-#[derive(Debug, Clone)]
-pub struct StepAudit {
-    /// Shortest interval allowed (ticks, at least 1: two steps never share a tick).
+/// The shortest step interval (ticks) a motor stepping at most `max_step_rate` steps/s may have on an MCU clock of
+/// `clock_hz`: one tick of clock rounding below `clock_hz / rate`, and never less than one tick (two steps on one
+/// tick cannot be timed); 1 without a rate.
+pub fn min_step_ticks(max_step_rate: Option<f64>, clock_hz: f64) -> u64 {
+    max_step_rate
+        .filter(|r| *r > 0.0 && r.is_finite())
+        .map(|rate| (clock_hz / rate).floor() as u64)
+        .map_or(1, |ticks| ticks.saturating_sub(1).max(1))
+}
+
+/// The first step of `clocks` (which follow a step at `previous`, if any) closer than `min_ticks` to the one
+/// before it.
+pub(crate) fn first_short_step(
+    clocks: &[u64],
+    previous: Option<u64>,
     min_ticks: u64,
-    last: Option<u64>,
-    net: i64,
-    problem: Option<StepProblem>,
-}
-
-impl StepAudit {
-    /// An audit for a motor stepping at most `max_step_rate` steps/s (any rate when `None`, but never two steps
-    /// on one tick) on an MCU clock of `clock_hz`. One tick of clock rounding is allowed below `clock_hz / rate`.
-    pub fn new(max_step_rate: Option<f64>, clock_hz: f64) -> Self {
-        let min_ticks = max_step_rate
-            .filter(|r| *r > 0.0 && r.is_finite())
-            .map(|rate| (clock_hz / rate).floor() as u64)
-            .map_or(1, |ticks| ticks.saturating_sub(1).max(1));
-        StepAudit {
-            min_ticks,
-            last: None,
-            net: 0,
-            problem: None,
-        }
-    }
-
-    /// The first problem found, if any.
-    pub fn problem(&self) -> Option<StepProblem> {
-        self.problem
-    }
-
-    /// Sum of +1 / −1 over the steps seen.
-    pub fn net_steps(&self) -> i64 {
-        self.net
-    }
-
-    #[cold]
-    fn found(&mut self, clock: u64, last: u64) {
-        if self.problem.is_some() {
-            return;
-        }
-        self.problem = Some(if clock <= last {
-            StepProblem::SameClock { clock }
-        } else {
-            StepProblem::TooFast {
-                clock,
-                interval_ticks: clock - last,
-                min_ticks: self.min_ticks,
-            }
-        });
-    }
-}
-
-impl StepSink for StepAudit {
-    #[inline]
-    fn step(&mut self, clock: u64, dir: bool) {
-        if let Some(last) = self.last
-            && clock < last.saturating_add(self.min_ticks)
+) -> Option<StepProblem> {
+    let mut before = previous;
+    for &clock in clocks {
+        if let Some(last) = before
+            && clock < last.saturating_add(min_ticks)
         {
-            self.found(clock, last);
+            return Some(if clock <= last {
+                StepProblem::SameClock { clock }
+            } else {
+                StepProblem::TooFast {
+                    clock,
+                    interval_ticks: clock - last,
+                    min_ticks,
+                }
+            });
         }
-        self.last = Some(clock);
-        self.net += if dir { 1 } else { -1 };
+        before = Some(clock);
     }
+    None
 }
 
 /// How far each motor must have moved along the planned path, from the positions the planner handed over (its
@@ -122,6 +91,8 @@ pub struct ExpectedTravel<'k> {
     /// kinematics give no motor position (a polar bed on its centre): that motor cannot be checked.
     travel: Vec<Option<f64>>,
     toolhead: Stretch<Vec3>,
+    /// The last toolhead move of the stretch: where it ends is computed only when the stretch closes.
+    last_move: Option<trapq::TrapezoidMove>,
     /// Declared positions so far: each starts the motors afresh off the step grid (as Klipper's
     /// `SET_KINEMATIC_POSITION` does), so each stretch may round by up to one step.
     declared: u32,
@@ -135,11 +106,6 @@ struct Stretch<T> {
 }
 
 impl<T: Copy> Stretch<T> {
-    fn reach(&mut self, start: T, end: T) {
-        self.first.get_or_insert(start);
-        self.last = Some(end);
-    }
-
     /// Close the stretch (its ends) and start a new one at `at`.
     fn restart(&mut self, at: T) -> Option<(T, T)> {
         let ends = self.first.zip(self.last);
@@ -158,7 +124,15 @@ impl<'k> ExpectedTravel<'k> {
             kin,
             travel: vec![Some(0.0); kin.motors().len() + usize::from(extruder)],
             toolhead: Stretch::default(),
+            last_move: None,
             declared: 0,
+        }
+    }
+
+    /// The stretch reaches where its last move ends.
+    fn settle_last_move(&mut self) {
+        if let Some(mv) = self.last_move.take() {
+            self.toolhead.last = Some(mv.end_pos());
         }
     }
 
@@ -176,6 +150,7 @@ impl<'k> ExpectedTravel<'k> {
     /// Each motor's travel (motor units), kinematic motors then the extruder (`None` where unknown), and how
     /// many stretches it was planned in (the steps may differ from the travel by up to a step per stretch).
     pub fn finish(mut self) -> (Vec<Option<f64>>, u32) {
+        self.settle_last_move();
         let toolhead = self.toolhead.first.zip(self.toolhead.last);
         self.close_toolhead(toolhead);
         (self.travel, self.declared + 1)
@@ -185,7 +160,10 @@ impl<'k> ExpectedTravel<'k> {
 impl trapq::MoveSink for ExpectedTravel<'_> {
     fn append(&mut self, queue: trapq::Queue, mv: &trapq::TrapezoidMove) {
         match queue {
-            trapq::Queue::Toolhead => self.toolhead.reach(mv.start_pos, mv.end_pos()),
+            trapq::Queue::Toolhead => {
+                self.toolhead.first.get_or_insert(mv.start_pos);
+                self.last_move = Some(*mv);
+            }
             trapq::Queue::Extruder => {
                 let n = self.kin.motors().len();
                 if let Some(Some(travel)) = self.travel.get_mut(n) {
@@ -196,6 +174,7 @@ impl trapq::MoveSink for ExpectedTravel<'_> {
     }
 
     fn set_position(&mut self, xyz: Vec3, _e: f64) {
+        self.settle_last_move();
         self.declared += 1;
         let toolhead = self.toolhead.restart(xyz);
         self.close_toolhead(toolhead);
@@ -222,13 +201,19 @@ pub fn net_agrees(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sink::StepSink;
+    use crate::stats::StepStats;
 
+    /// The problem the statistics sink finds in `clocks`, handed over one step at a time or as one run.
     fn audit(max_rate: Option<f64>, clocks: &[u64]) -> Option<StepProblem> {
-        let mut audit = StepAudit::new(max_rate, 16e6);
+        let mut one = StepStats::new(16e6).audited(max_rate);
+        let mut run = StepStats::new(16e6).audited(max_rate);
         for &c in clocks {
-            audit.step(c, true);
+            one.step(c, true);
         }
-        audit.problem()
+        run.steps(clocks, true);
+        assert_eq!(one.problem(), run.problem(), "{clocks:?}");
+        one.problem()
     }
 
     #[test]
@@ -236,6 +221,8 @@ mod tests {
         assert_eq!(audit(None, &[10, 11, 12, 1000]), None);
         // 20 000 steps/s on 16 MHz: 800 ticks; one tick of rounding is allowed.
         assert_eq!(audit(Some(20_000.0), &[0, 800, 1599, 2400]), None);
+        assert_eq!(min_step_ticks(Some(20_000.0), 16e6), 799);
+        assert_eq!(min_step_ticks(None, 16e6), 1);
     }
 
     #[test]
@@ -259,6 +246,21 @@ mod tests {
         );
         let text = problem.expect("found").describe(16e6);
         assert!(text.contains("700 ticks apart"), "{text}");
+    }
+
+    #[test]
+    fn a_problem_across_two_runs_is_found() {
+        let mut stats = StepStats::new(16e6).audited(Some(20_000.0));
+        stats.steps(&[0, 800], true);
+        stats.steps(&[1000, 1800], false);
+        assert_eq!(
+            stats.problem(),
+            Some(StepProblem::TooFast {
+                clock: 1000,
+                interval_ticks: 200,
+                min_ticks: 799
+            })
+        );
     }
 
     #[test]

@@ -29,7 +29,7 @@ mod stats;
 mod timing;
 mod writer;
 
-pub use audit::{ExpectedTravel, StepAudit, StepProblem, net_agrees};
+pub use audit::{ExpectedTravel, StepProblem, min_step_ticks, net_agrees};
 pub use error::{MovesCsvError, StepError, StepFileError};
 pub use files::{FileAndStats, finish_step_files, step_file_sinks};
 pub use filter::StepFilter;

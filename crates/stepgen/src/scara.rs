@@ -23,9 +23,9 @@
 //! comes within 1e-12 of the arm's reach limits (`|cos q2| → 1`) goes to the general solver, which reports
 //! unreachable points as before.
 
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::PI;
 
-use kinematics::scara::{Joints, SHOULDER, ScaraGeometry, ScaraJoint};
+use kinematics::scara::{Joints, SHOULDER, ScaraGeometry, ScaraJoint, normalise};
 use kinematics::{ElbowBranch, Kinematics, ReachError, unwrap_near};
 use trapq::Piece;
 
@@ -346,17 +346,6 @@ fn mul(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
     let lo = p.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = p.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     (lo, hi)
-}
-
-/// Angle in `(−π, π]` (as `ScaraGeometry::joints` normalises `q1`).
-fn normalise(a: f64) -> f64 {
-    if a > PI {
-        a - TAU
-    } else if a <= -PI {
-        a + TAU
-    } else {
-        a
-    }
 }
 
 /// The crossings of one run, where the motor is monotonic: Newton from the previous crossing in a bracket.

@@ -1,10 +1,12 @@
 //! Per-motor step statistics for summaries: counts, net steps, clock range, minimum interval and peak rates.
 
+use crate::audit::{StepProblem, first_short_step, min_step_ticks};
 use crate::sink::StepSink;
 
 /// Collects statistics from a motor's step stream (a [`StepSink`]).
 #[derive(Debug, Clone)]
 pub struct StepStats {
+    clock_hz: f64,
     window_ticks: u64,
     steps: u64,
     net: i64,
@@ -20,6 +22,10 @@ pub struct StepStats {
     peak_in_window: usize,
     /// The last run handed over: its length and smallest gap (from the step before it on).
     previous_run: (usize, u64),
+    /// The step audit: the shortest gap an MCU may be given (see [`crate::min_step_ticks`]), and the first step
+    /// found closer than that.
+    min_ticks: u64,
+    problem: Option<StepProblem>,
 }
 
 /// Finished statistics of one motor.
@@ -44,6 +50,7 @@ impl StepStats {
     /// Statistics for a motor whose MCU clock runs at `clock_hz`.
     pub fn new(clock_hz: f64) -> Self {
         StepStats {
+            clock_hz,
             window_ticks: (clock_hz * 1e-3).round().max(1.0) as u64,
             steps: 0,
             net: 0,
@@ -53,6 +60,27 @@ impl StepStats {
             recent: vec![0; 16],
             peak_in_window: 1,
             previous_run: (0, 0),
+            min_ticks: 1,
+            problem: None,
+        }
+    }
+
+    /// Audit the stream for a motor stepping at most `max_step_rate` steps/s (besides never two steps on one
+    /// tick, which is always checked).
+    pub fn audited(mut self, max_step_rate: Option<f64>) -> Self {
+        self.min_ticks = min_step_ticks(max_step_rate, self.clock_hz);
+        self
+    }
+
+    /// The first step closer to the one before it than the audit allows, if any.
+    pub fn problem(&self) -> Option<StepProblem> {
+        self.problem
+    }
+
+    #[cold]
+    fn note_short_run(&mut self, clocks: &[u64], previous: u64) {
+        if self.problem.is_none() {
+            self.problem = first_short_step(clocks, Some(previous), self.min_ticks);
         }
     }
 
@@ -203,6 +231,9 @@ impl StepSink for StepStats {
             previous = clock;
         }
         self.min_interval = self.min_interval.min(run_min_interval);
+        if run_min_interval < self.min_ticks {
+            self.note_short_run(rest, self.last_clock);
+        }
         self.update_peak(rest, run_min_interval);
         self.previous_run = (rest.len(), run_min_interval);
         self.last_clock = last;

@@ -141,9 +141,11 @@ impl TrapezoidMove {
         self.accel_t + self.cruise_t + self.decel_t
     }
 
-    /// Signed distance covered along `axes_r` (a bed turn: the angle turned).
+    /// Signed distance covered along `axes_r` (a bed turn: the angle turned): the three phases in closed form.
     pub fn distance(&self) -> f64 {
-        self.pieces().map(|p| p.distance(p.duration)).sum()
+        let accelerating = (self.start_v + 0.5 * self.accel * self.accel_t) * self.accel_t;
+        let decelerating = (self.cruise_v - 0.5 * self.accel * self.decel_t) * self.decel_t;
+        accelerating + self.cruise_v * self.cruise_t + decelerating
     }
 
     /// Where the move ends (a bed turn ends where it starts).
@@ -318,6 +320,7 @@ mod tests {
             let pieces: Vec<Piece> = mv.pieces().collect();
             let turned: f64 = pieces.iter().map(|p| p.distance(p.duration)).sum();
             assert!((turned - angle).abs() < 1e-12, "{turned} vs {angle}");
+            assert!((mv.distance() - turned).abs() < 1e-12);
             let last = pieces.last().expect("pieces");
             assert!(last.velocity(last.duration).abs() < 1e-12);
             assert!(pieces.iter().all(|p| p.motion == Motion::BedTurn));

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use kinematics::{Kinematics, MotorUnit};
 use motion::machine::{MachineSetup, plan_gcode};
-use stepgen::{StepAudit, net_agrees};
+use stepgen::{StepProblem, net_agrees};
 
 /// A step stream a real MCU could not execute.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,7 +31,9 @@ impl std::fmt::Display for StepStreamError {
 /// One motor as the audit sees it.
 pub struct AuditedMotor<'a> {
     pub name: &'a str,
-    pub audit: &'a StepAudit,
+    /// The first step the audit found too close to the one before it.
+    pub problem: Option<StepProblem>,
+    pub net_steps: i64,
     pub step_distance: f64,
     /// A motor that turns without end (2π) compares its position modulo a turn.
     pub period: Option<f64>,
@@ -47,7 +49,7 @@ pub struct AuditedMotor<'a> {
 pub fn first_problem(motors: &[AuditedMotor], clock_hz: f64) -> Option<StepStreamError> {
     let step_problem = motors
         .iter()
-        .filter_map(|m| m.audit.problem().map(|p| (m, p)))
+        .filter_map(|m| m.problem.map(|p| (m, p)))
         .min_by_key(|(_, p)| p.clock())
         .map(|(m, p)| StepStreamError {
             motor: m.name.to_string(),
@@ -59,7 +61,7 @@ pub fn first_problem(motors: &[AuditedMotor], clock_hz: f64) -> Option<StepStrea
 
 fn position_problem(m: &AuditedMotor) -> Option<StepStreamError> {
     let expected = m.expected_travel?;
-    let net = m.audit.net_steps();
+    let net = m.net_steps;
     (!net_agrees(net, m.step_distance, expected, m.period, m.stretches)).then(|| StepStreamError {
         motor: m.name.to_string(),
         time: m.last_time,

@@ -8,8 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 use stepgen::{
-    ExpectedTravel, ExtruderSpec, MotorStats, StepAudit, StepFileWriter, StepGenConfig, StepSink,
-    StepStats,
+    ExpectedTravel, ExtruderSpec, MotorStats, StepFileWriter, StepGenConfig, StepSink, StepStats,
 };
 
 use super::audit::{AuditedMotor, StepStreamError, first_problem, line_at_time, period_of};
@@ -103,7 +102,6 @@ pub fn load_machine(path: &Path) -> miette::Result<(config::MachineConfig, Machi
 #[derive(Debug)]
 struct MotorSink {
     stats: StepStats,
-    audit: StepAudit,
     file: Option<StepFileWriter>,
 }
 
@@ -111,7 +109,6 @@ impl StepSink for MotorSink {
     #[inline]
     fn step(&mut self, clock: u64, dir: bool) {
         self.stats.step(clock, dir);
-        self.audit.step(clock, dir);
         if let Some(file) = &mut self.file {
             file.step(clock, dir);
         }
@@ -120,7 +117,6 @@ impl StepSink for MotorSink {
     #[inline]
     fn steps(&mut self, clocks: &[u64], dir: bool) {
         self.stats.steps(clocks, dir);
-        self.audit.steps(clocks, dir);
         if let Some(file) = &mut self.file {
             file.steps(clocks, dir);
         }
@@ -289,18 +285,19 @@ fn audit_steps(
         .zip(step_distances)
         .zip(travel)
         .enumerate()
-        .map(
-            |(i, (((sink, name), step_distance), expected_travel))| AuditedMotor {
+        .map(|(i, (((sink, name), step_distance), expected_travel))| {
+            let stats = sink.stats.summary(clock_hz, 0);
+            AuditedMotor {
                 name,
-                audit: &sink.audit,
+                problem: sink.stats.problem(),
+                net_steps: stats.net_steps,
                 step_distance,
                 period: period_of(kin, i),
                 expected_travel,
                 stretches,
-                last_time: sink.stats.summary(clock_hz, 0).last_clock.unwrap_or(0) as f64
-                    / clock_hz,
-            },
-        )
+                last_time: stats.last_clock.unwrap_or(0) as f64 / clock_hz,
+            }
+        })
         .collect();
     match first_problem(&motors, clock_hz) {
         Some(problem) => Err(ExecuteError::Steps(problem)),
@@ -356,8 +353,7 @@ pub fn execute(
             None => None,
         };
         sinks.push(MotorSink {
-            stats: StepStats::new(options.clock_hz),
-            audit: StepAudit::new(max_step_rate(machine, name), options.clock_hz),
+            stats: StepStats::new(options.clock_hz).audited(max_step_rate(machine, name)),
             file,
         });
     }

@@ -3,12 +3,13 @@
 //! without an angular acceleration limit. The bed stays within its limits, no motor steps twice on one clock,
 //! every move completes at its target, and the print takes at most the bound stated in [`time_bound`].
 
-use motion::machine::{MachineSetup, plan_gcode};
 use proptest::prelude::*;
 use stepgen::Step;
-use trapq::{Motion, Queue, TrapezoidMove};
+use trapq::{Motion, TrapezoidMove};
 
-use crate::limits::{CLOCK_HZ, MAX_ALPHA, MAX_OMEGA, peak_rates, plan_and_step, polar_config};
+use crate::limits::{
+    CLOCK_HZ, MAX_ALPHA, MAX_OMEGA, peak_rates, plan, plan_and_step, polar_config,
+};
 
 const DISTANCES: [f64; 8] = [0.0, 1e-15, 1e-9, 1e-6, 1e-3, 0.1, 1.0, 5.0];
 const ACCEL: f64 = 3000.0;
@@ -109,19 +110,6 @@ fn cartesian_config() -> String {
     )
 }
 
-fn toolhead_moves(config: &str, gcode: &str) -> Vec<TrapezoidMove> {
-    let machine = config::MachineConfig::from_str(config, "printer.cfg").expect("config loads");
-    let setup = MachineSetup::from_config(&machine).expect("machine builds");
-    let mut moves = Vec::new();
-    let sink = |q: Queue, mv: &TrapezoidMove| {
-        if q == Queue::Toolhead {
-            moves.push(*mv);
-        }
-    };
-    let _ = plan_gcode(&setup, gcode.as_bytes(), "case.gcode", sink).expect("plans");
-    moves
-}
-
 fn span_time(moves: &[TrapezoidMove]) -> f64 {
     let first = moves.first().expect("moves").print_time;
     let last = moves.last().expect("moves");
@@ -190,7 +178,7 @@ fn check(case: &Case) -> Result<(), TestCaseError> {
     let miss = (end[0] - target[0]).hypot(end[1] - target[1]);
     prop_assert!(miss <= CENTRE_TOLERANCE, "{case:?}: ends {miss} mm off");
     let ours = span_time(&moves);
-    let cartesian = span_time(&toolhead_moves(&cartesian_config(), &text));
+    let cartesian = span_time(&plan(&cartesian_config(), &text).1);
     let bound = time_bound(case, cartesian);
     prop_assert!(
         ours <= bound,

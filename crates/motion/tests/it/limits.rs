@@ -24,15 +24,7 @@ pub(crate) fn polar_config() -> String {
 
 /// Plan `gcode` on the machine `config` and generate every motor's steps; the toolhead moves and the steps.
 pub(crate) fn plan_and_step(config: &str, gcode: &str) -> (Vec<TrapezoidMove>, Vec<Vec<Step>>) {
-    let machine = config::MachineConfig::from_str(config, "printer.cfg").expect("config loads");
-    let setup = MachineSetup::from_config(&machine).expect("machine builds");
-    let mut moves = Vec::new();
-    let sink = |q: Queue, mv: &TrapezoidMove| {
-        if q == Queue::Toolhead {
-            moves.push(*mv);
-        }
-    };
-    let _ = plan_gcode(&setup, gcode.as_bytes(), "test.gcode", sink).expect("plans");
+    let (setup, moves) = plan(config, gcode);
     let pieces: Vec<Piece> = moves.iter().flat_map(|m| m.pieces()).collect();
     let start = pieces.first().expect("moves").start_pos;
     let config = StepGenConfig {
@@ -47,6 +39,20 @@ pub(crate) fn plan_and_step(config: &str, gcode: &str) -> (Vec<TrapezoidMove>, V
         .expect("steps");
     generator.finish(&mut sinks).expect("finishes");
     (moves, sinks)
+}
+
+/// Plan `gcode` on the machine `config`: the machine and its toolhead moves.
+pub(crate) fn plan(config: &str, gcode: &str) -> (MachineSetup, Vec<TrapezoidMove>) {
+    let machine = config::MachineConfig::from_str(config, "printer.cfg").expect("config loads");
+    let setup = MachineSetup::from_config(&machine).expect("machine builds");
+    let mut moves = Vec::new();
+    let sink = |q: Queue, mv: &TrapezoidMove| {
+        if q == Queue::Toolhead {
+            moves.push(*mv);
+        }
+    };
+    let _ = plan_gcode(&setup, gcode.as_bytes(), "test.gcode", sink).expect("plans");
+    (setup, moves)
 }
 
 /// Plan one straight pass at `offset` mm from the centre at `speed` mm/s; the planned moves and the bed's steps.

@@ -73,24 +73,6 @@ pub(crate) fn bed_angle(p: [f64; 4], turn: &CentreTurn) -> Option<f64> {
     (x != 0.0 || y != 0.0).then(|| y.atan2(x))
 }
 
-/// The largest junction speed² at which the bed's angular speed changes by at most `turn.junction_change` where a
-/// move along `from` (unit direction) meets one along `to` at `p`: the bed turns at `v·cross(p, u)/ρ²`, so the
-/// change is `v·|cross(p, to) − cross(p, from)|/ρ²`. Infinite where nothing binds.
-pub(crate) fn junction_v2(p: [f64; 4], from: [f64; 3], to: [f64; 3], turn: &CentreTurn) -> f64 {
-    let Some(change) = turn.junction_change else {
-        return f64::INFINITY;
-    };
-    let [x, y] = ray(p, turn);
-    let rho2 = x * x + y * y;
-    let cross = |u: [f64; 3]| x * u[1] - y * u[0];
-    let jump = (cross(to) - cross(from)).abs();
-    if jump == 0.0 || rho2 == 0.0 {
-        return f64::INFINITY;
-    }
-    let v = change * rho2 / jump;
-    v * v
-}
-
 /// The turn (rad, in [−π, π]) that brings the bed from `from` to `to`.
 pub(crate) fn turn_between(from: f64, to: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
@@ -107,7 +89,6 @@ mod tests {
         tolerance: 0.005,
         max_velocity: 5.0,
         max_accel: 200.0,
-        junction_change: Some(200.0 * 16.0 * std::f64::consts::TAU / 16000.0 / 5.0),
     };
 
     #[test]
@@ -126,28 +107,6 @@ mod tests {
         assert_eq!(
             passage(p(10.0, 0.006), p(-10.0, 0.006), &TURN),
             Passage::Away
-        );
-    }
-
-    #[test]
-    fn a_corner_near_the_centre_is_taken_slowly_enough_for_the_bed() {
-        // At (0.1, 0): arriving along +Y turns the bed at v/0.1, leaving along −Y at −v/0.1: a jump of 20·v.
-        let p = [0.1, 0.0, 0.0, 0.0];
-        let v2 = junction_v2(p, [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], &TURN);
-        let change = TURN.junction_change.expect("limit");
-        assert!((v2.sqrt() * 20.0 - change).abs() < 1e-12);
-        // Straight on, or with no angular acceleration limit: nothing binds.
-        assert_eq!(
-            junction_v2(p, [0.0, 1.0, 0.0], [0.0, 1.0, 0.0], &TURN),
-            f64::INFINITY
-        );
-        let free = CentreTurn {
-            junction_change: None,
-            ..TURN
-        };
-        assert_eq!(
-            junction_v2(p, [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], &free),
-            f64::INFINITY
         );
     }
 

@@ -52,15 +52,7 @@ pub struct CentreTurn {
     /// Angular speed and acceleration of the turn (rad/s, rad/s²).
     pub max_velocity: f64,
     pub max_accel: f64,
-    /// With an angular acceleration limit: the most the bed's angular speed may change at once where two moves
-    /// meet (rad/s), as Klipper lets an axis' speed change at a corner: what that limit allows over
-    /// [`JUNCTION_STEPS`] steps at the bed's top speed.
-    pub junction_change: Option<f64>,
 }
-
-/// The bed's angular speed may change at once at a junction by what its acceleration limit allows over this many
-/// steps at its top speed (a motor's speed is only defined over several steps; the tests measure it over 16).
-pub const JUNCTION_STEPS: f64 = 16.0;
 
 /// Everything the planner needs to know about the machine, fixed for a run.
 #[derive(Debug, Clone, PartialEq)]

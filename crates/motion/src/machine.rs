@@ -3,7 +3,7 @@
 
 use crate::driver::{PlanError, Planner, Warning};
 use crate::kinematic_limits::MotorLimit;
-use crate::limits::{CentreTurn, ExtruderLimits, JUNCTION_STEPS, PlannerConfig, VelocityLimits};
+use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::toolhead::{SlowMoves, Toolhead};
 use config::{KinematicsKind, MachineConfig};
 use gcode::{Commands, GcodeError};
@@ -135,20 +135,15 @@ fn centre_turn(
         .filter(|r| *r > 0.0)?;
     let l = &machine.limits;
     let bed = limits.iter().find(|m| m.motor == centre.bed);
-    let max_velocity = bed
-        .and_then(|b| b.max_velocity)
-        .unwrap_or(l.max_velocity / radius);
-    let step = kin.motors().get(centre.bed).map(|m| m.step_distance)?;
     Some(CentreTurn {
         centre: centre.point,
         tolerance: centre.tolerance,
-        max_velocity,
+        max_velocity: bed
+            .and_then(|b| b.max_velocity)
+            .unwrap_or(l.max_velocity / radius),
         max_accel: bed
             .and_then(|b| b.max_accel)
             .unwrap_or(l.max_accel / radius),
-        junction_change: bed
-            .and_then(|b| b.max_accel)
-            .map(|alpha| alpha * JUNCTION_STEPS * step / max_velocity),
     })
 }
 

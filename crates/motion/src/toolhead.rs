@@ -310,13 +310,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         self.note_if_slowed(&mv, speed);
         self.commanded_pos = mv.end_pos;
         if let Some(prev) = self.lookahead.last() {
-            let mut extra_v2 = extruder_junction_v2(self.config.extruder.as_ref(), prev, &mv);
-            if let Some(turn) = &self.config.centre_turn {
-                let bed_v2 =
-                    centre::junction_v2(mv.start_pos, prev.direction(), mv.direction(), turn);
-                extra_v2 = extra_v2.min(bed_v2);
-            }
-            mv.calc_junction(prev, extra_v2);
+            let extruder_v2 = extruder_junction_v2(self.config.extruder.as_ref(), prev, &mv);
+            mv.calc_junction(prev, extruder_v2);
         }
         if self.lookahead.push(mv) {
             self.process_lookahead(true);

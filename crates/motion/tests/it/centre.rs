@@ -131,7 +131,7 @@ fn turn_alpha(angular_accel: bool) -> f64 {
 }
 
 /// What physics allows: the path at its requested speed (the Cartesian plan), plus the bed's half turn at its
-/// limits (two for a corner), plus one stop. A path that meets the centre stops there and the bed turns at most half a revolution;
+/// limits, plus one stop. A path that meets the centre stops there and the bed turns at most half a revolution;
 /// a path that passes nearby turns it through less than that while only its near part slows. The stop and restart
 /// at `v` add `v/a'`, where `a'` is the acceleration Klipper's lookahead ramps short moves with
 /// (`max_accel · (1 − minimum_cruise_ratio)`), and Klipper's 1 ms restart delay before and after the turn. The
@@ -147,15 +147,7 @@ fn time_bound(case: &Case, cartesian: f64) -> f64 {
         MAX_OMEGA,
         turn_alpha(case.angular_accel),
     );
-    // A corner beside the centre turns the bed on the way in and again on the way out.
-    let half_turns = match case.path {
-        Path::Corner { .. } => 2.0,
-        Path::Pass | Path::Arc => 1.0,
-    };
-    cartesian
-        + RESTARTS
-        + BANDS * half_turns * half_turn
-        + v / (ACCEL * (1.0 - MINIMUM_CRUISE_RATIO))
+    cartesian + RESTARTS + BANDS * half_turn + v / (ACCEL * (1.0 - MINIMUM_CRUISE_RATIO))
 }
 
 fn end_position(moves: &[TrapezoidMove]) -> [f64; 3] {
@@ -195,17 +187,6 @@ fn check(case: &Case) -> Result<(), TestCaseError> {
     Ok(())
 }
 
-/// Corners are tested on the centre (within its tolerance, where the planner stops and turns the bed in place).
-/// A corner beside it changes the bed's angular speed at once; the planner caps that change at what
-/// `max_angular_accel` gives over 16 steps at top speed, which keeps the bed within about 2% of its
-/// acceleration limit measured over 16 steps, not within 1% (see the closing note).
-fn distance_for(path: Path, distance: f64) -> f64 {
-    match path {
-        Path::Corner { .. } => distance.min(1e-3),
-        _ => distance,
-    }
-}
-
 fn path() -> impl Strategy<Value = Path> {
     prop_oneof![
         Just(Path::Pass),
@@ -214,8 +195,20 @@ fn path() -> impl Strategy<Value = Path> {
     ]
 }
 
+/// Corners are tested on the centre (within its tolerance, where the planner stops and turns the bed in place). A
+/// corner beside it changes the bed's angular speed at once where the moves meet, as Klipper's planner changes an
+/// axis' speed at a corner, while the spans on either side may already use the whole angular acceleration: measured
+/// over 16 steps the bed then exceeds `max_angular_accel` by up to 6% (0.1 mm from the centre); the planner does
+/// not yet share the acceleration budget with the junction.
+fn distance_for(path: Path, distance: f64) -> f64 {
+    match path {
+        Path::Corner { .. } => distance.min(1e-3),
+        _ => distance,
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 160, ..ProptestConfig::default() })]
 
     #[test]
     fn every_path_near_the_centre_completes_within_the_bed_limits_and_the_time_bound(

@@ -5,7 +5,9 @@
 
 use std::sync::Arc;
 
-use kinematics::{Kinematics, MotorMap, MotorUnit, ReachError, SegmentError, unwrap_near};
+use kinematics::{
+    Kinematics, MotorMap, MotorUnit, ReachError, RotationCentre, SegmentError, unwrap_near,
+};
 
 use crate::error::ConvertError;
 use crate::options::Target;
@@ -178,12 +180,8 @@ impl AxisMap {
     }
 
     /// The polar rotation centre, where a motor declares itself an angle about a point.
-    pub fn centre(&self) -> Option<[f64; 2]> {
-        let kin = self.machine();
-        (0..kin.motors().len()).find_map(|i| match kin.motor_map(i) {
-            MotorMap::Angle { centre } => Some(centre),
-            _ => None,
-        })
+    pub fn centre(&self) -> Option<RotationCentre> {
+        self.machine().rotation_centre()
     }
 
     /// The machine that moves.

@@ -35,9 +35,6 @@ use crate::segment::{Breakpoint, Budget, CutError, cut_adaptive, cut_fixed};
 
 /// Distance (mm) kept from the exact polar centre, where the bed angle is undefined.
 const CENTRE_GAP: f64 = 1e-7;
-/// A line passing this close (mm) to the centre is treated as passing through it: its bed angle would
-/// swing by half a turn within a few of these, far below any tolerance.
-const CENTRE_SNAP: f64 = 1e-6;
 /// Share of the tolerance the probe check may use (the rest covers probe sampling and rounding).
 const PROBE_MARGIN: f64 = 0.9;
 
@@ -376,21 +373,27 @@ impl<W: Write> Converter<W> {
                 return Err(ConvertError::Unreachable { span, reason });
             }
         }
-        // Lines that miss the declared centre by a hair count as crossing it (see CENTRE_SNAP).
-        let Some(c) = self.map.centre() else {
+        // A line within the machine's centre tolerance (and the conversion's) meets the centre, as the planner
+        // plans it: it is converted through the centre, where the bed turns in place.
+        let Some(centre) = self.map.centre() else {
             return Ok(None);
         };
+        let snap = match self.options.segmentation {
+            Segmentation::Adaptive { tolerance } => centre.tolerance.min(tolerance),
+            Segmentation::Fixed { .. } => centre.tolerance,
+        };
+        let c = centre.point;
         let d = [to[0] - from[0], to[1] - from[1]];
         let len2 = d[0] * d[0] + d[1] * d[1];
         let t = (((c[0] - from[0]) * d[0] + (c[1] - from[1]) * d[1]) / len2).clamp(0.0, 1.0);
         let (mx, my) = (from[0] + d[0] * t - c[0], from[1] + d[1] * t - c[1]);
         let miss = (mx * mx + my * my).sqrt();
-        Ok((miss <= CENTRE_SNAP).then_some(t))
+        Ok((miss <= snap).then_some(t))
     }
 
     fn arc_meets_centre(&self, path: &Path) -> bool {
         match self.map.centre() {
-            Some(c) => path.distance_xy(c, 0.0, 1.0) <= CENTRE_GAP,
+            Some(c) => path.distance_xy(c.point, 0.0, 1.0) <= CENTRE_GAP,
             None => false,
         }
     }

@@ -7,7 +7,7 @@ use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::toolhead::{SlowMoves, Toolhead};
 use config::{KinematicsKind, MachineConfig};
 use gcode::{Commands, GcodeError};
-use kinematics::Kinematics;
+use kinematics::{Kinematics, MotorUnit};
 use std::io::BufRead;
 use trapq::MoveSink;
 
@@ -94,11 +94,12 @@ fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit
     let l = &machine.limits;
     let mut limits = Vec::new();
     for (index, motor) in kin.motors().iter().enumerate() {
-        let (mut velocity, accel) = match (machine.kinematics, motor.name.as_str()) {
-            (KinematicsKind::Polar, "stepper_bed") => (l.max_angular_velocity, l.max_angular_accel),
-            (KinematicsKind::Scara, "stepper_a" | "stepper_b") => {
-                (l.max_joint_velocity, l.max_joint_accel)
+        // The machine says which motors turn: a polar machine's bed, a SCARA's joints.
+        let (mut velocity, accel) = match (machine.kinematics, motor.unit) {
+            (KinematicsKind::Polar, MotorUnit::Rad) => {
+                (l.max_angular_velocity, l.max_angular_accel)
             }
+            (KinematicsKind::Scara, MotorUnit::Rad) => (l.max_joint_velocity, l.max_joint_accel),
             _ => (None, None),
         };
         let step_rate = machine

@@ -257,6 +257,36 @@ pub enum ExecuteError {
     Other(miette::Report),
 }
 
+/// One sink per motor: statistics with the step audit, and the step file when `--steps` asks for one.
+fn motor_sinks(
+    machine: &config::MachineConfig,
+    motor_names: &[String],
+    options: &RunOptions,
+) -> miette::Result<Vec<MotorSink>> {
+    let step_dir = options.steps.as_deref();
+    if let Some(dir) = step_dir {
+        crate::output::directory_output(dir).map_err(super::plain)?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
+    }
+    let mut sinks = Vec::with_capacity(motor_names.len());
+    for name in motor_names {
+        let file = match step_dir {
+            Some(dir) => {
+                let path = dir.join(format!("{name}.txt"));
+                crate::output::refuse_input(&path).map_err(super::plain)?;
+                Some(StepFileWriter::create(path).map_err(|e| miette::miette!("{e}"))?)
+            }
+            None => None,
+        };
+        sinks.push(MotorSink {
+            stats: StepStats::new(options.clock_hz).audited(max_step_rate(machine, name)),
+            file,
+        });
+    }
+    Ok(sinks)
+}
+
 /// A stepper's configured step-rate limit (its own, or `[printer]`'s).
 fn max_step_rate(machine: &config::MachineConfig, stepper: &str) -> Option<f64> {
     machine
@@ -336,27 +366,7 @@ pub fn execute(
         .map(|m| m.name.clone())
         .chain(extruder.iter().map(|e| e.name.clone()))
         .collect();
-    let step_dir = options.steps.as_deref();
-    if let Some(dir) = step_dir {
-        crate::output::directory_output(dir).map_err(super::plain)?;
-        std::fs::create_dir_all(dir)
-            .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
-    }
-    let mut sinks = Vec::with_capacity(motor_names.len());
-    for name in &motor_names {
-        let file = match step_dir {
-            Some(dir) => {
-                let path = dir.join(format!("{name}.txt"));
-                crate::output::refuse_input(&path).map_err(super::plain)?;
-                Some(StepFileWriter::create(path).map_err(|e| miette::miette!("{e}"))?)
-            }
-            None => None,
-        };
-        sinks.push(MotorSink {
-            stats: StepStats::new(options.clock_hz).audited(max_step_rate(machine, name)),
-            file,
-        });
-    }
+    let sinks = motor_sinks(machine, &motor_names, options)?;
     let config = StepGenConfig {
         clock_hz: options.clock_hz,
         ..StepGenConfig::default()

@@ -148,6 +148,14 @@ impl Machine {
     ) -> Result<MoveVerdict, String> {
         let kin = self.kinematics();
         kin.check_segment(start, end).map_err(|e| e.to_string())?;
+        if kin.rests_at(end) && start != end {
+            // jointspace's planner stops the arm at such a pose; Klipper's cannot be told to, and arriving there
+            // at speed would spin the joints without bound. Leaving it (after homing to it) is fine: from rest.
+            return Err(format!(
+                "({:.3}, {:.3}) is a pose the arm may only reach at rest (nearly straight or folded)",
+                end[0], end[1]
+            ));
+        }
         let spans = split(kin, self.motor_limits(), start, end, speed, accel);
         if spans.is_empty() {
             return Ok(MoveVerdict::Free);

@@ -398,13 +398,15 @@ fn stats_of(
     loop {
         // The interpreter's queue is empty here (drained after every general line), as the fast
         // path requires for a line to give the command the general path would.
+        // All the lines the fast path takes in the input's buffer in one run; the command is
+        // looked at where the fast path wrote it, not copied out.
         if fast_lines
-            && reader
-                .take_line_with(|bytes, number| interpreter.fast_line(bytes, number))
-                .is_some()
+            && reader.take_lines_with(|bytes, number| {
+                let len = interpreter.fast_line(bytes, number)?;
+                interpreter.look_at_fast_command(|command| collector.add_fast_line(command));
+                Some(len)
+            }) > 0
         {
-            let command = interpreter.take_fast_command();
-            collector.add_fast_line(command.as_ref().map(|c| &c.value));
             continue;
         }
         let Some(line) = reader.next_line() else {

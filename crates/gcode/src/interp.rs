@@ -166,11 +166,17 @@ impl Interpreter {
         self.queue.pop_front()
     }
 
-    /// The command [`Self::fast_line`] left for the line it took last (none for a blank line or a
-    /// comment without metadata).
-    #[inline]
-    pub(crate) fn take_fast_command(&mut self) -> Option<Spanned<Command>> {
-        self.fast_command.take()
+    /// Shows `look` the command [`Self::fast_line`] left for the line it took last (none for a
+    /// blank line or a comment without metadata) and drops it: nothing is copied out, for a caller
+    /// that only looks at the command.
+    #[inline(always)]
+    pub(crate) fn look_at_fast_command<T>(
+        &mut self,
+        look: impl FnOnce(Option<&Command>) -> T,
+    ) -> T {
+        let seen = look(self.fast_command.as_ref().map(|c| &c.value));
+        self.fast_command = None;
+        seen
     }
 
     /// End of input: emits a layer start still waiting for its Z.

@@ -248,6 +248,55 @@ impl<R: BufRead> Reader<R> {
         Some(())
     }
 
+    /// [`Self::take_line_with`] for every line in the input's buffer, one after another, until
+    /// `take` gives `None` or the buffer ends: the buffer is looked at once and consumed once for
+    /// the whole run (not once a line). What is left (the line `take` refused, a line crossing the
+    /// buffer's end) is read as [`Self::take_line_with`] leaves it. Gives the number of lines taken.
+    #[inline(always)]
+    pub(crate) fn take_lines_with(
+        &mut self,
+        mut take: impl FnMut(&[u8], u64) -> Option<usize>,
+    ) -> usize {
+        if self.failed_io || self.pending_io_error.is_some() || self.at_start {
+            return 0;
+        }
+        self.consume_deferred();
+        let offer_len = self.offer_len;
+        let available = loop {
+            match self.input.fill_buf() {
+                Ok(bytes) => break bytes,
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
+                Err(err) => {
+                    self.pending_io_error = Some(err);
+                    return 0;
+                }
+            }
+        };
+        let (mut pos, mut skip_lf, mut line) = (0, self.skip_lf, self.line);
+        loop {
+            let start = pos + usize::from(skip_lf && available.get(pos) == Some(&b'\n'));
+            let offered_end = available.len().min(start.saturating_add(offer_len));
+            let Some(offered) = available.get(start..offered_end) else {
+                break;
+            };
+            let Some(len) = take(offered, line + 1) else {
+                break;
+            };
+            let end = start + len;
+            debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
+            skip_lf = available.get(end) == Some(&b'\r');
+            pos = (end + 1).min(available.len());
+            line += 1;
+        }
+        let taken = (line - self.line) as usize;
+        self.input.consume(pos);
+        self.skip_lf = skip_lf;
+        self.line = line;
+        self.utf8_checked = self.utf8_checked.saturating_sub(pos);
+        self.bytes_consumed += pos as u64;
+        taken
+    }
+
     /// Consumes the line handed out last.
     fn consume_deferred(&mut self) {
         if self.deferred_consume > 0 {

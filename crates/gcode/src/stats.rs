@@ -22,10 +22,7 @@ pub struct BoundingBox {
 }
 
 impl BoundingBox {
-    fn point(p: [f64; 3]) -> Self {
-        BoundingBox { min: p, max: p }
-    }
-
+    #[inline(always)]
     fn include(&mut self, p: [f64; 3]) {
         for (axis, value) in p.into_iter().enumerate() {
             self.min[axis] = self.min[axis].min(value);
@@ -67,7 +64,7 @@ pub struct Stats {
 }
 
 /// Accumulates [`Stats`] from lines and commands.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct StatsCollector {
     stats: Stats,
     codes: CodeCounts,
@@ -77,8 +74,16 @@ pub struct StatsCollector {
     last_extruded: bool,
     /// `position` is already in the bounding box (the end of an extruding move or arc).
     position_included: bool,
-    /// XY steps whose lengths are not yet in [`Stats::xy_travel`] (see [`Self::flush_xy_travel`]).
-    xy_pending: Vec<[f64; 2]>,
+    /// XY steps whose lengths are not yet in [`Stats::xy_travel`] (see [`Self::flush_xy_travel`]):
+    /// the first `xy_pending_len` (a fixed array: no capacity check per move).
+    xy_pending: Box<[[f64; 2]; XY_BATCH]>,
+    xy_pending_len: usize,
+    /// The extruded box so far as [`BoundingBox`] bounds, empty (`+inf`/`-inf`) until the first
+    /// point: one `min`/`max` per axis and point, no test for a first point.
+    bbox: BoundingBox,
+    /// `sin_cos` of the quarter angles [`Self::include_arc`] tests (computed once, as it computed them
+    /// for each arc).
+    quarter_sin_cos: [(f64, f64); 4],
 }
 
 /// How many XY steps [`StatsCollector`] holds before adding up their lengths.
@@ -86,6 +91,27 @@ const XY_BATCH: usize = 256;
 
 /// A Z step (mm) between two extruding moves that starts a new level (smaller ones are a spiral's climb).
 const LEVEL_STEP: f64 = 0.02;
+
+impl Default for StatsCollector {
+    fn default() -> Self {
+        StatsCollector {
+            stats: Stats::default(),
+            codes: CodeCounts::default(),
+            position: Position::default(),
+            level_z: None,
+            last_extruded: false,
+            position_included: false,
+            xy_pending: Box::new([[0.0; 2]; XY_BATCH]),
+            xy_pending_len: 0,
+            bbox: BoundingBox {
+                min: [f64::INFINITY; 3],
+                max: [f64::NEG_INFINITY; 3],
+            },
+            quarter_sin_cos: [0, 1, 2, 3]
+                .map(|quarter| (f64::from(quarter) * std::f64::consts::FRAC_PI_2).sin_cos()),
+        }
+    }
+}
 
 impl StatsCollector {
     pub fn new() -> Self {
@@ -201,8 +227,9 @@ impl StatsCollector {
     /// Books a move's XY step (its length added later) and its filament.
     #[inline]
     fn travel(&mut self, start: &Position, end: &Position, xy_step: [f64; 2]) {
-        self.xy_pending.push(xy_step);
-        if self.xy_pending.len() >= XY_BATCH {
+        self.xy_pending[self.xy_pending_len] = xy_step;
+        self.xy_pending_len += 1;
+        if self.xy_pending_len == XY_BATCH {
             self.flush_xy_travel();
         }
         let de = end[3] - start[3];
@@ -239,7 +266,8 @@ impl StatsCollector {
     /// nothing but independent calls lets the processor overlap them.
     #[inline(never)]
     fn flush_xy_travel(&mut self) {
-        for [dx, dy] in self.xy_pending.drain(..) {
+        let pending = &self.xy_pending[..std::mem::take(&mut self.xy_pending_len)];
+        for &[dx, dy] in pending {
             self.stats.xy_travel += xy_length(dx, dy);
         }
     }
@@ -253,12 +281,11 @@ impl StatsCollector {
         extruding
     }
 
+    /// Grows the box to `p`. (From the empty box, the first point gives its own coordinates
+    /// exactly: `inf.min(v)` is `v`, signed zeros included; positions are never NaN.)
+    #[inline(always)]
     fn include(&mut self, p: &Position) {
-        let point = [p[0], p[1], p[2]];
-        match &mut self.stats.extrusion_bbox {
-            Some(bbox) => bbox.include(point),
-            None => self.stats.extrusion_bbox = Some(BoundingBox::point(point)),
-        }
+        self.bbox.include([p[0], p[1], p[2]]);
     }
 
     /// End points plus every axis extreme (0°, 90°, 180°, 270°) the arc passes.
@@ -276,7 +303,7 @@ impl StatsCollector {
                 angle - start_angle
             };
             if travelled.rem_euclid(std::f64::consts::TAU) <= sweep {
-                let (s, c) = angle.sin_cos();
+                let (s, c) = self.quarter_sin_cos[quarter as usize];
                 let z = if arc.start[2] == arc.target[2] {
                     arc.start[2]
                 } else {
@@ -290,6 +317,10 @@ impl StatsCollector {
     /// The summary so far.
     pub fn finish(mut self, warnings: u64) -> Stats {
         self.flush_xy_travel();
+        // Something was included exactly when the box is not empty.
+        if self.bbox.min[0] <= self.bbox.max[0] {
+            self.stats.extrusion_bbox = Some(self.bbox);
+        }
         for ((letter, major, minor), count) in self.codes.counts() {
             let name = match minor {
                 Some(minor) => format!("{}{major}.{minor}", letter as char),
@@ -398,13 +429,15 @@ fn stats_of(
     loop {
         // The interpreter's queue is empty here (drained after every general line), as the fast
         // path requires for a line to give the command the general path would.
+        // All the lines the fast path takes in the input's buffer in one run; the command is
+        // looked at where the fast path wrote it, not copied out.
         if fast_lines
-            && reader
-                .take_line_with(|bytes, number| interpreter.fast_line(bytes, number))
-                .is_some()
+            && reader.take_lines_with(|bytes, number| {
+                let len = interpreter.fast_line(bytes, number)?;
+                interpreter.look_at_fast_command(|command| collector.add_fast_line(command));
+                Some(len)
+            }) > 0
         {
-            let command = interpreter.take_fast_command();
-            collector.add_fast_line(command.as_ref().map(|c| &c.value));
             continue;
         }
         let Some(line) = reader.next_line() else {

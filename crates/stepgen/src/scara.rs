@@ -486,10 +486,109 @@ impl Crossings<'_> {
     }
 }
 
+impl Crossings<'_> {
+    /// Two levels at once, both predicted from the last crossing and evaluated by increments from the last
+    /// point, so neither evaluation waits for the other (one level's solve is one long serial dependency:
+    /// prediction, evaluation, Newton step). Each is accepted by the same test as in [`Self::solve`], in its
+    /// own bracket (the second's starts at the first's crossing). `None` when anything falls outside that
+    /// one-evaluation path; nothing has changed then, or only the first level is taken (`Err`).
+    #[inline]
+    fn try_pair(&mut self, la: f64, lb: f64) -> Option<Result<(f64, f64), f64>> {
+        if self.chained >= CHAIN {
+            return None;
+        }
+        let xa = self.predict(la);
+        let xb = self.predict(lb);
+        let pa = self.line.eval_near(xa, &self.anchor)?;
+        let pb = self.line.eval_near(xb, &self.anchor);
+        let (ia, ib) = (1.0 / pa.slope, pb.map(|p| 1.0 / p.slope));
+        // The first level, as `solve`'s first iteration.
+        let (mut lo, mut hi) = (self.before, self.after);
+        if !strictly_between(xa, lo, hi) {
+            return None;
+        }
+        let ga = (pa.f - la) * self.rising;
+        if ga == 0.0 {
+            return None;
+        }
+        if ga < 0.0 {
+            lo = xa;
+        } else {
+            hi = xa;
+        }
+        let step_a = -(pa.f - la) * ia;
+        let ra = xa + step_a;
+        let kappa_a = (2.0 * self.curvature * ia).abs() + self.inv_length;
+        if !(step_a.is_finite() && step_a * step_a * kappa_a <= self.tol && between(ra, lo, hi)) {
+            return None;
+        }
+        self.chained += 1;
+        self.anchor = pa;
+        self.accept(ra, la, (xa, pa.slope, ia));
+        // The second level, from the same start.
+        let (Some(pb), Some(ib)) = (pb, ib) else {
+            return Some(Err(ra));
+        };
+        let (mut lo, mut hi) = (self.before, self.after);
+        if !strictly_between(xb, lo, hi) {
+            return Some(Err(ra));
+        }
+        let gb = (pb.f - lb) * self.rising;
+        if gb == 0.0 {
+            return Some(Err(ra));
+        }
+        if gb < 0.0 {
+            lo = xb;
+        } else {
+            hi = xb;
+        }
+        let step_b = -(pb.f - lb) * ib;
+        let rb = xb + step_b;
+        let kappa_b = (2.0 * self.curvature * ib).abs() + self.inv_length;
+        if !(step_b.is_finite() && step_b * step_b * kappa_b <= self.tol && between(rb, lo, hi)) {
+            return Some(Err(ra));
+        }
+        // `pb` is one increment from the point before `pa`: the chain is one longer, not two.
+        self.anchor = pb;
+        self.accept(rb, lb, (xb, pb.slope, ib));
+        Some(Ok((ra, rb)))
+    }
+}
+
+/// Whether `x` lies in the closed interval between `a` and `b` (either order).
+#[inline]
+fn between(x: f64, a: f64, b: f64) -> bool {
+    let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+    x >= lo && x <= hi
+}
+
+/// [`between`], and not at either end (where `solve` bisects instead).
+#[inline]
+fn strictly_between(x: f64, a: f64, b: f64) -> bool {
+    between(x, a, b) && x != a && x != b
+}
+
 impl LevelInverse for Crossings<'_> {
     fn next_time(&mut self, level: f64) -> f64 {
         let root = self.solve(level);
         self.span.time_at(root)
+    }
+
+    const PAIRS: bool = true;
+
+    #[inline]
+    fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
+        match self.try_pair(a, b) {
+            Some(Ok((ra, rb))) => (self.span.time_at(ra), self.span.time_at(rb)),
+            Some(Err(ra)) => {
+                let ta = self.span.time_at(ra);
+                (ta, self.next_time(b))
+            }
+            None => {
+                let ta = self.next_time(a);
+                (ta, self.next_time(b))
+            }
+        }
     }
 }
 

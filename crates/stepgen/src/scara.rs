@@ -201,7 +201,7 @@ impl JointLine {
     /// `q2` turn by small angles whose sines and cosines are cross and dot products of the two points'
     /// vectors, and a small angle is its tangent's short series. `None` when an increment is too large for
     /// the series (or the point is out of reach): the caller evaluates in full.
-    #[inline]
+    #[inline(always)]
     fn eval_near(&self, s: f64, from: &Point) -> Option<Point> {
         let x = self.start[0] + self.dir[0] * s;
         let y = self.start[1] + self.dir[1] * s;

@@ -12,8 +12,10 @@
 //! motor is monotonic, so its steps are exactly those of [`MotorStepper::monotonic`]; each crossing is found
 //! by Newton's method on that one motor, started from the previous crossing with a second-order prediction
 //! and kept inside a bracket (bisection when Newton leaves it), so a crossing can be neither missed nor
-//! taken out of order. Typically one evaluation per step (1.04 on `scara-fekt-synthetic`); the general solver
-//! made about five of all motors, plus 17+ Jacobian samples per span.
+//! taken out of order. Levels go two at a time (`Crossings::try_pair`): both predicted from the last
+//! crossing and evaluated from the last point, so the CPU overlaps their serial chains; each passes the same
+//! acceptance test or is solved alone. Typically one evaluation per step (1.04 on `scara-fekt-synthetic`);
+//! the general solver made about five of all motors, plus 17+ Jacobian samples per span.
 //!
 //! Run ends are evaluated with the arithmetic of `ScaraGeometry::joints` and `motors_from_joints` and
 //! unwrapped as `Kinematics::inverse_near` does (near the previous evaluation; across a long run, near the

@@ -434,8 +434,17 @@ impl MotorStepper {
             let more = loop {
                 let level = commanded + half;
                 commanded = level + half;
-                self.batch[count] = inverse.next_time(level);
-                count += 1;
+                if I::PAIRS && count + 2 <= STEP_BATCH && due(commanded + half) {
+                    let second = commanded + half;
+                    commanded = second + half;
+                    let (ta, tb) = inverse.next_pair(level, second);
+                    self.batch[count] = ta;
+                    self.batch[count + 1] = tb;
+                    count += 2;
+                } else {
+                    self.batch[count] = inverse.next_time(level);
+                    count += 1;
+                }
                 let more = due(commanded + half);
                 if count == STEP_BATCH || !more {
                     break more;
@@ -599,6 +608,16 @@ pub(crate) trait LevelInverse {
 
     /// The time of `level`, the next level of the batch.
     fn next_time(&mut self, level: f64) -> f64;
+
+    /// Whether [`Self::next_pair`] is worth calling (it finds two levels with overlapping arithmetic).
+    const PAIRS: bool = false;
+
+    /// The times of the next two levels of the batch, `a` then `b`.
+    #[inline]
+    fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
+        let ta = self.next_time(a);
+        (ta, self.next_time(b))
+    }
 }
 
 impl<F: FnMut(f64) -> f64> LevelInverse for F {

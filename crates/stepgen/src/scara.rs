@@ -12,8 +12,10 @@
 //! motor is monotonic, so its steps are exactly those of [`MotorStepper::monotonic`]; each crossing is found
 //! by Newton's method on that one motor, started from the previous crossing with a second-order prediction
 //! and kept inside a bracket (bisection when Newton leaves it), so a crossing can be neither missed nor
-//! taken out of order. Typically one evaluation per step (1.04 on `scara-fekt-synthetic`); the general solver
-//! made about five of all motors, plus 17+ Jacobian samples per span.
+//! taken out of order. Levels go two at a time (`Crossings::try_pair`): both predicted from the last
+//! crossing and evaluated from the last point, so the CPU overlaps their serial chains; each passes the same
+//! acceptance test or is solved alone. Typically one evaluation per step (1.04 on `scara-fekt-synthetic`);
+//! the general solver made about five of all motors, plus 17+ Jacobian samples per span.
 //!
 //! Run ends are evaluated with the arithmetic of `ScaraGeometry::joints` and `motors_from_joints` and
 //! unwrapped as `Kinematics::inverse_near` does (near the previous evaluation; across a long run, near the
@@ -201,7 +203,7 @@ impl JointLine {
     /// `q2` turn by small angles whose sines and cosines are cross and dot products of the two points'
     /// vectors, and a small angle is its tangent's short series. `None` when an increment is too large for
     /// the series (or the point is out of reach): the caller evaluates in full.
-    #[inline]
+    #[inline(always)]
     fn eval_near(&self, s: f64, from: &Point) -> Option<Point> {
         let x = self.start[0] + self.dir[0] * s;
         let y = self.start[1] + self.dir[1] * s;
@@ -336,8 +338,14 @@ fn small_atan(y: f64, x: f64) -> Option<f64> {
     if !(x > 0.0 && t.abs() <= SMALL_TAN) {
         return None;
     }
+    // `t·(1 − t²/3 + t⁴/5 − t⁶/7 + t⁸/9)`, the powers side by side (Estrin's scheme: the divisions by
+    // constants are multiplications, the chain is three products deep instead of five).
     let t2 = t * t;
-    Some(t * (1.0 - t2 * (1.0 / 3.0 - t2 * (1.0 / 5.0 - t2 * (1.0 / 7.0 - t2 / 9.0)))))
+    let t4 = t2 * t2;
+    let low = 1.0 - t2 * (1.0 / 3.0);
+    let mid = 1.0 / 5.0 - t2 * (1.0 / 7.0);
+    let high = t4 * (1.0 / 9.0);
+    Some(t * (low + t4 * (mid + high)))
 }
 
 /// Interval product.
@@ -480,10 +488,109 @@ impl Crossings<'_> {
     }
 }
 
+impl Crossings<'_> {
+    /// Two levels at once, both predicted from the last crossing and evaluated by increments from the last
+    /// point, so neither evaluation waits for the other (one level's solve is one long serial dependency:
+    /// prediction, evaluation, Newton step). Each is accepted by the same test as in [`Self::solve`], in its
+    /// own bracket (the second's starts at the first's crossing). `None` when anything falls outside that
+    /// one-evaluation path; nothing has changed then, or only the first level is taken (`Err`).
+    #[inline]
+    fn try_pair(&mut self, la: f64, lb: f64) -> Option<Result<(f64, f64), f64>> {
+        if self.chained >= CHAIN {
+            return None;
+        }
+        let xa = self.predict(la);
+        let xb = self.predict(lb);
+        let pa = self.line.eval_near(xa, &self.anchor)?;
+        let pb = self.line.eval_near(xb, &self.anchor);
+        let (ia, ib) = (1.0 / pa.slope, pb.map(|p| 1.0 / p.slope));
+        // The first level, as `solve`'s first iteration.
+        let (mut lo, mut hi) = (self.before, self.after);
+        if !strictly_between(xa, lo, hi) {
+            return None;
+        }
+        let ga = (pa.f - la) * self.rising;
+        if ga == 0.0 {
+            return None;
+        }
+        if ga < 0.0 {
+            lo = xa;
+        } else {
+            hi = xa;
+        }
+        let step_a = -(pa.f - la) * ia;
+        let ra = xa + step_a;
+        let kappa_a = (2.0 * self.curvature * ia).abs() + self.inv_length;
+        if !(step_a.is_finite() && step_a * step_a * kappa_a <= self.tol && between(ra, lo, hi)) {
+            return None;
+        }
+        self.chained += 1;
+        self.anchor = pa;
+        self.accept(ra, la, (xa, pa.slope, ia));
+        // The second level, from the same start.
+        let (Some(pb), Some(ib)) = (pb, ib) else {
+            return Some(Err(ra));
+        };
+        let (mut lo, mut hi) = (self.before, self.after);
+        if !strictly_between(xb, lo, hi) {
+            return Some(Err(ra));
+        }
+        let gb = (pb.f - lb) * self.rising;
+        if gb == 0.0 {
+            return Some(Err(ra));
+        }
+        if gb < 0.0 {
+            lo = xb;
+        } else {
+            hi = xb;
+        }
+        let step_b = -(pb.f - lb) * ib;
+        let rb = xb + step_b;
+        let kappa_b = (2.0 * self.curvature * ib).abs() + self.inv_length;
+        if !(step_b.is_finite() && step_b * step_b * kappa_b <= self.tol && between(rb, lo, hi)) {
+            return Some(Err(ra));
+        }
+        // `pb` is one increment from the point before `pa`: the chain is one longer, not two.
+        self.anchor = pb;
+        self.accept(rb, lb, (xb, pb.slope, ib));
+        Some(Ok((ra, rb)))
+    }
+}
+
+/// Whether `x` lies in the closed interval between `a` and `b` (either order).
+#[inline]
+fn between(x: f64, a: f64, b: f64) -> bool {
+    let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+    x >= lo && x <= hi
+}
+
+/// [`between`], and not at either end (where `solve` bisects instead).
+#[inline]
+fn strictly_between(x: f64, a: f64, b: f64) -> bool {
+    between(x, a, b) && x != a && x != b
+}
+
 impl LevelInverse for Crossings<'_> {
     fn next_time(&mut self, level: f64) -> f64 {
         let root = self.solve(level);
         self.span.time_at(root)
+    }
+
+    const PAIRS: bool = true;
+
+    #[inline]
+    fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
+        match self.try_pair(a, b) {
+            Some(Ok((ra, rb))) => (self.span.time_at(ra), self.span.time_at(rb)),
+            Some(Err(ra)) => {
+                let ta = self.span.time_at(ra);
+                (ta, self.next_time(b))
+            }
+            None => {
+                let ta = self.next_time(a);
+                (ta, self.next_time(b))
+            }
+        }
     }
 }
 

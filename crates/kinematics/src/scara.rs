@@ -369,8 +369,13 @@ impl Scara {
 
     /// Whether `p` lies in the singular band (`|sin q2|` below the margin: the arm nearly straight or folded).
     pub fn in_singular_band(&self, p: Vec3) -> bool {
-        self.joints(p[0], p[1])
-            .is_ok_and(|j| j.q2.sin().abs() < self.params.singularity_margin)
+        // cos q2 from the distance to the shoulder (the law of cosines), no inverse trigonometry: the planner
+        // asks this for every move. |sin q2| < m ⇔ 1 − cos² q2 < m², for points the arm reaches (|cos q2| ≤ 1).
+        let (l1, l2) = (self.params.link1_length, self.params.link2_length);
+        let (u, v) = self.arm_frame(p[0], p[1]);
+        let cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+        let m = self.params.singularity_margin;
+        cos_q2.abs() <= 1.0 && 1.0 - cos_q2 * cos_q2 < m * m
     }
 
     /// The stretches of the segment `a → b` next to an end that rests in the singular band: such an end is a

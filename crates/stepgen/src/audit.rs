@@ -90,31 +90,13 @@ pub struct ExpectedTravel<'k> {
     /// Motor travel so far, kinematic motors then the extruder; `None` once a stretch ended where the
     /// kinematics give no motor position (a polar bed on its centre): that motor cannot be checked.
     travel: Vec<Option<f64>>,
-    toolhead: Stretch<Vec3>,
-    /// The last toolhead move of the stretch: where it ends is computed only when the stretch closes.
+    /// Where the current stretch starts, and its last move so far (whose end is computed only when the
+    /// stretch closes).
+    stretch_start: Option<Vec3>,
     last_move: Option<trapq::TrapezoidMove>,
     /// Declared positions so far: each starts the motors afresh off the step grid (as Klipper's
     /// `SET_KINEMATIC_POSITION` does), so each stretch may round by up to one step.
     declared: u32,
-}
-
-/// The first and last point of the current stretch.
-#[derive(Debug, Clone, Copy, Default)]
-struct Stretch<T> {
-    first: Option<T>,
-    last: Option<T>,
-}
-
-impl<T: Copy> Stretch<T> {
-    /// Close the stretch (its ends) and start a new one at `at`.
-    fn restart(&mut self, at: T) -> Option<(T, T)> {
-        let ends = self.first.zip(self.last);
-        *self = Stretch {
-            first: Some(at),
-            last: Some(at),
-        };
-        ends
-    }
 }
 
 impl<'k> ExpectedTravel<'k> {
@@ -123,25 +105,21 @@ impl<'k> ExpectedTravel<'k> {
         ExpectedTravel {
             kin,
             travel: vec![Some(0.0); kin.motors().len() + usize::from(extruder)],
-            toolhead: Stretch::default(),
+            stretch_start: None,
             last_move: None,
             declared: 0,
         }
     }
 
-    /// The stretch reaches where its last move ends.
-    fn settle_last_move(&mut self) {
-        if let Some(mv) = self.last_move.take() {
-            self.toolhead.last = Some(mv.end_pos());
-        }
-    }
-
-    fn close_toolhead(&mut self, ends: Option<(Vec3, Vec3)>) {
-        let Some((first, last)) = ends else { return };
+    /// Add the current stretch's travel: from its start to where its last move ends (nothing if none moved).
+    fn close_stretch(&mut self) {
+        let (Some(first), Some(mv)) = (self.stretch_start, self.last_move.take()) else {
+            return;
+        };
         let n = self.kin.motors().len();
         let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
-        let known =
-            self.kin.inverse(first, &mut a).is_ok() && self.kin.inverse(last, &mut b).is_ok();
+        let known = self.kin.inverse(first, &mut a).is_ok()
+            && self.kin.inverse(mv.end_pos(), &mut b).is_ok();
         for (i, travel) in self.travel.iter_mut().take(n).enumerate() {
             *travel = travel.filter(|_| known).map(|t| t + b[i] - a[i]);
         }
@@ -150,9 +128,7 @@ impl<'k> ExpectedTravel<'k> {
     /// Each motor's travel (motor units), kinematic motors then the extruder (`None` where unknown), and how
     /// many stretches it was planned in (the steps may differ from the travel by up to a step per stretch).
     pub fn finish(mut self) -> (Vec<Option<f64>>, u32) {
-        self.settle_last_move();
-        let toolhead = self.toolhead.first.zip(self.toolhead.last);
-        self.close_toolhead(toolhead);
+        self.close_stretch();
         (self.travel, self.declared + 1)
     }
 }
@@ -161,7 +137,7 @@ impl trapq::MoveSink for ExpectedTravel<'_> {
     fn append(&mut self, queue: trapq::Queue, mv: &trapq::TrapezoidMove) {
         match queue {
             trapq::Queue::Toolhead => {
-                self.toolhead.first.get_or_insert(mv.start_pos);
+                self.stretch_start.get_or_insert(mv.start_pos);
                 self.last_move = Some(*mv);
             }
             trapq::Queue::Extruder => {
@@ -174,10 +150,9 @@ impl trapq::MoveSink for ExpectedTravel<'_> {
     }
 
     fn set_position(&mut self, xyz: Vec3, _e: f64) {
-        self.settle_last_move();
+        self.close_stretch();
         self.declared += 1;
-        let toolhead = self.toolhead.restart(xyz);
-        self.close_toolhead(toolhead);
+        self.stretch_start = Some(xyz);
     }
 }
 

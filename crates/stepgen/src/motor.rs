@@ -533,7 +533,8 @@ impl MotorStepper {
         }
         let qa = line.point(span.d0);
         let qb = line.point(span.d1);
-        if line.perpendicular_distance() <= RADIAL_ROUNDING {
+        // |cross| / |u| ≤ RADIAL_ROUNDING, without a square root on the bed's hot path.
+        if line.cross * line.cross <= RADIAL_ROUNDING * RADIAL_ROUNDING * line.uu {
             return self.radial_span(piece, span, &line, sink);
         }
         let raw = qa[1].atan2(qa[0]);

@@ -434,10 +434,7 @@ impl Crossings<'_> {
             }
             let step = -(p.f - level) * inv_slope;
             let next = x + step;
-            // Newton's error after this step is about |f''/(2f')|·step²; accept it when that is below tol
-            // (with the curvature estimate doubled, and a floor on it).
-            let kappa = (2.0 * self.curvature * inv_slope).abs() + self.inv_length;
-            if step.is_finite() && step * step * kappa <= self.tol && self.inside(next) {
+            if self.step_lands(step, inv_slope) && self.inside(next) {
                 return self.accept(next, level, last);
             }
             if (self.after - self.before).abs() <= self.tol {
@@ -469,6 +466,36 @@ impl Crossings<'_> {
         };
         self.anchor = p;
         Ok(p)
+    }
+
+    /// Whether a Newton step lands within the tolerance: its error is about |f''/(2f')|·step², with the curvature
+    /// estimate doubled and a floor on it.
+    #[inline]
+    fn step_lands(&self, step: f64, inv_slope: f64) -> bool {
+        let kappa = (2.0 * self.curvature * inv_slope).abs() + self.inv_length;
+        step.is_finite() && step * step * kappa <= self.tol
+    }
+
+    /// One Newton step from `x` (where the motor reads `f`, with inverse slope `inv_slope`) towards `level`, in
+    /// the bracket as [`Self::solve`] narrows it: the root when the step lands inside, within the tolerance.
+    #[inline]
+    fn one_step_root(&self, x: f64, f: f64, level: f64, inv_slope: f64) -> Option<f64> {
+        let (mut lo, mut hi) = (self.before, self.after);
+        if !strictly_between(x, lo, hi) {
+            return None;
+        }
+        let g = (f - level) * self.rising;
+        if g == 0.0 {
+            return None;
+        }
+        if g < 0.0 {
+            lo = x;
+        } else {
+            hi = x;
+        }
+        let step = -(f - level) * inv_slope;
+        let root = x + step;
+        (self.step_lands(step, inv_slope) && between(root, lo, hi)).then_some(root)
     }
 
     fn accept(&mut self, root: f64, level: f64, last: (f64, f64, f64)) -> f64 {
@@ -505,51 +532,17 @@ impl Crossings<'_> {
         let pb = self.line.eval_near(xb, &self.anchor);
         let (ia, ib) = (1.0 / pa.slope, pb.map(|p| 1.0 / p.slope));
         // The first level, as `solve`'s first iteration.
-        let (mut lo, mut hi) = (self.before, self.after);
-        if !strictly_between(xa, lo, hi) {
-            return None;
-        }
-        let ga = (pa.f - la) * self.rising;
-        if ga == 0.0 {
-            return None;
-        }
-        if ga < 0.0 {
-            lo = xa;
-        } else {
-            hi = xa;
-        }
-        let step_a = -(pa.f - la) * ia;
-        let ra = xa + step_a;
-        let kappa_a = (2.0 * self.curvature * ia).abs() + self.inv_length;
-        if !(step_a.is_finite() && step_a * step_a * kappa_a <= self.tol && between(ra, lo, hi)) {
-            return None;
-        }
+        let ra = self.one_step_root(xa, pa.f, la, ia)?;
         self.chained += 1;
         self.anchor = pa;
         self.accept(ra, la, (xa, pa.slope, ia));
-        // The second level, from the same start.
+        // The second level, from the same start, in the bracket the first left.
         let (Some(pb), Some(ib)) = (pb, ib) else {
             return Some(Err(ra));
         };
-        let (mut lo, mut hi) = (self.before, self.after);
-        if !strictly_between(xb, lo, hi) {
+        let Some(rb) = self.one_step_root(xb, pb.f, lb, ib) else {
             return Some(Err(ra));
-        }
-        let gb = (pb.f - lb) * self.rising;
-        if gb == 0.0 {
-            return Some(Err(ra));
-        }
-        if gb < 0.0 {
-            lo = xb;
-        } else {
-            hi = xb;
-        }
-        let step_b = -(pb.f - lb) * ib;
-        let rb = xb + step_b;
-        let kappa_b = (2.0 * self.curvature * ib).abs() + self.inv_length;
-        if !(step_b.is_finite() && step_b * step_b * kappa_b <= self.tol && between(rb, lo, hi)) {
-            return Some(Err(ra));
-        }
+        };
         // `pb` is one increment from the point before `pa`: the chain is one longer, not two.
         self.anchor = pb;
         self.accept(rb, lb, (xb, pb.slope, ib));

@@ -8,7 +8,8 @@
 use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
-use motion::machine::{MachineSetup, plan_gcode};
+use motion::machine::MachineSetup;
+use printjob::plan_gcode;
 use stepgen::{ExtruderSpec, StepGenConfig, StepPipeline, StepSink};
 
 const MACHINE: &str = include_str!("../../examples/machines/cartesian.cfg");

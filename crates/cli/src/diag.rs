@@ -173,3 +173,40 @@ pub fn at_gcode_line(
         help: None,
     }
 }
+
+/// A step stream no MCU could run, as a diagnostic on the G-code line it comes from (when it could be found).
+pub fn step_stream_error(
+    file: &Path,
+    line: Option<u64>,
+    e: &printjob::StepStreamError,
+) -> miette::Report {
+    match line {
+        Some(line) => {
+            let span = gcode::Span {
+                line,
+                column: 1,
+                len: 0,
+            };
+            miette::Report::new(at_gcode_line(
+                file,
+                span,
+                e.to_string(),
+                "the steps of this move".into(),
+            ))
+        }
+        None => miette::miette!("{}: {e}", file.display()),
+    }
+}
+
+/// A planning error as a diagnostic on the G-code line.
+pub fn pipeline_error(file: &Path, e: printjob::PipelineError) -> miette::Report {
+    match e {
+        printjob::PipelineError::Gcode(e) => miette::Report::new(gcode_error(&e)),
+        printjob::PipelineError::Plan(e) => miette::Report::new(at_gcode_line(
+            file,
+            e.span,
+            e.kind.to_string(),
+            "this move".into(),
+        )),
+    }
+}

@@ -5,7 +5,11 @@ mod cmd;
 mod diag;
 mod input;
 mod interrupt;
+mod machine;
+mod magnets;
+mod maps;
 mod output;
+mod report;
 mod testprint;
 
 use clap::{Parser, Subcommand};

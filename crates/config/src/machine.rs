@@ -251,6 +251,15 @@ impl MachineConfig {
             .find(|s| s.name.eq_ignore_ascii_case(name))
     }
 
+    /// A stepper's step-rate limit (steps/s): its own `max_step_rate`, else `[printer]`'s; the extruder's
+    /// stepper too.
+    pub fn max_step_rate(&self, stepper: &str) -> Option<f64> {
+        let extruder = self.extruder.as_ref().map(|e| &e.stepper);
+        self.stepper(stepper)
+            .or(extruder.filter(|s| s.name.eq_ignore_ascii_case(stepper)))
+            .map_or(self.limits.max_step_rate, |s| s.max_step_rate)
+    }
+
     /// Keys in the sections jointspace interprets that nothing read (likely misspelt), with spans.
     pub fn unused_keys(&self) -> Vec<UnusedKey> {
         let stepper_sections = self.steppers.iter().map(|s| s.name.as_str());

@@ -17,7 +17,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let sink = motion::csv::CsvSink::new(std::io::stdout().lock());
     let file = std::fs::File::open(input)?;
-    let (sink, _) = motion::machine::plan_gcode(&setup, BufReader::new(file), input, sink)?;
+    let (sink, _) = printjob::plan_gcode(&setup, BufReader::new(file), input, sink)?;
     let _stdout = sink.finish()?;
     Ok(())
 }

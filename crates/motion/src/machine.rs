@@ -1,15 +1,9 @@
-//! A machine ready to plan for: kinematics, planner limits and the homing pose, built from `printer.cfg`,
-//! and the loop that plans a whole G-code stream.
+//! A machine ready to plan for: kinematics, planner limits and the homing pose, built from `printer.cfg`.
 
-use crate::driver::{PlanError, Planner, Warning};
 use crate::kinematic_limits::MotorLimit;
 use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
-use crate::toolhead::{SlowMoves, Toolhead};
 use config::{KinematicsKind, MachineConfig};
-use gcode::{Commands, GcodeError};
 use kinematics::{Kinematics, MotorUnit};
-use std::io::BufRead;
-use trapq::MoveSink;
 
 /// Why a machine could not be set up.
 #[derive(Debug, thiserror::Error)]
@@ -20,26 +14,6 @@ pub enum SetupError {
     NoHomePose { reason: String },
     #[error("homing pose ({x:.3}, {y:.3}) from the endstop positions is unreachable: {reason}")]
     Home { x: f64, y: f64, reason: String },
-}
-
-/// Why planning stopped.
-#[derive(Debug, thiserror::Error)]
-pub enum PipelineError {
-    #[error(transparent)]
-    Gcode(#[from] GcodeError),
-    #[error(transparent)]
-    Plan(#[from] PlanError),
-}
-
-/// What planning a stream produced besides the moves.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PlanSummary {
-    /// Print time at which the last move ends (s).
-    pub end_time: f64,
-    pub warnings: Vec<Warning>,
-    pub gcode_warnings: Vec<gcode::Warning>,
-    /// Moves a machine limit slowed below a quarter of their requested speed.
-    pub slow_moves: SlowMoves,
 }
 
 /// Kinematics + planner configuration + homing pose of one machine.
@@ -102,11 +76,7 @@ fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit
             (KinematicsKind::Scara, MotorUnit::Rad) => (l.max_joint_velocity, l.max_joint_accel),
             _ => (None, None),
         };
-        let step_rate = machine
-            .stepper(&motor.name)
-            .and_then(|s| s.max_step_rate)
-            .or(l.max_step_rate);
-        if let Some(rate) = step_rate {
+        if let Some(rate) = machine.max_step_rate(&motor.name) {
             let v = rate * motor.step_distance;
             velocity = Some(velocity.map_or(v, |limit| limit.min(v)));
         }
@@ -223,195 +193,4 @@ fn kin_forward(kin: &dyn Kinematics, motors: &[f64]) -> Result<[f64; 3], SetupEr
         reason: e.to_string(),
     })?;
     Ok(p)
-}
-
-/// One problem found by [`check_gcode`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct Problem {
-    pub span: gcode::Span,
-    pub severity: Severity,
-    pub message: String,
-    /// The offending line's text, when the reader kept it (G-code syntax errors).
-    pub line_text: Option<(String, usize)>,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Severity {
-    Warning,
-    Error,
-}
-
-/// Everything [`check_gcode`] found, and the print time of what could be planned.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CheckReport {
-    /// The first `max_problems` problems found, in file order.
-    pub problems: Vec<Problem>,
-    pub end_time: f64,
-    pub slow_moves: u64,
-    /// Every error and warning found, kept or not.
-    pub error_count: usize,
-    pub warning_count: usize,
-}
-
-impl CheckReport {
-    /// Errors found (all of them, also beyond `max_problems`).
-    pub fn errors(&self) -> usize {
-        self.error_count
-    }
-}
-
-/// Plan a stream without generating steps and collect every problem instead of stopping at the first:
-/// syntax errors, unreachable segments, commands the planner refused (after each refusal the check goes on
-/// from the refused move's target when the machine can be there, else from where it is, with the target's E:
-/// [`Planner::resync_after_refusal`]),
-/// ignored commands, and moves that a machine limit slows below a quarter of their requested speed.
-/// At most `max_problems` are kept (all are counted in the error total).
-pub fn check_gcode(
-    setup: &MachineSetup,
-    input: impl BufRead,
-    source_name: &str,
-    max_problems: usize,
-) -> CheckReport {
-    let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), ());
-    let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
-    let mut commands = Commands::from_reader(input, source_name);
-    if let Some(home) = setup.home_position {
-        planner.start_at(home);
-        let mut position = commands.interpreter().last_position();
-        position[..3].copy_from_slice(&home);
-        commands.interpreter_mut().set_position(position);
-    }
-    let mut problems = Vec::new();
-    let (mut error_count, mut warning_count) = (0, 0);
-    let mut push = |problem: Problem| {
-        match problem.severity {
-            Severity::Error => error_count += 1,
-            Severity::Warning => warning_count += 1,
-        }
-        if problems.len() < max_problems {
-            problems.push(problem);
-        }
-    };
-    while let Some(command) = commands.next_command() {
-        match command {
-            Err(e) => push(Problem {
-                span: e.span,
-                severity: Severity::Error,
-                message: e.kind.to_string(),
-                line_text: Some((e.line_text.clone(), e.line_text_offset)),
-            }),
-            Ok(command) => match planner.command(&command) {
-                Ok(Some(position)) => commands.interpreter_mut().set_position(position),
-                Ok(None) => {}
-                Err(e) => {
-                    push(Problem {
-                        span: e.span,
-                        severity: Severity::Error,
-                        message: e.kind.to_string(),
-                        line_text: None,
-                    });
-                    // Go on from where the file meant to be, so no follow-on errors are invented.
-                    let position = planner.resync_after_refusal(&command);
-                    commands.interpreter_mut().set_position(position);
-                }
-            },
-        }
-    }
-    for w in commands.take_warnings() {
-        push(Problem {
-            span: w.span,
-            severity: Severity::Warning,
-            message: w.message.clone(),
-            line_text: None,
-        });
-    }
-    let (_, end_time, warnings, slow) = planner.finish();
-    for w in warnings {
-        push(Problem {
-            span: w.span,
-            severity: Severity::Warning,
-            message: w.message,
-            line_text: None,
-        });
-    }
-    for s in &slow.first {
-        push(Problem {
-            span: gcode::Span {
-                line: s.origin,
-                column: 1,
-                len: 0,
-            },
-            severity: Severity::Warning,
-            message: format!(
-                "move slowed to {:.1} mm/s by a machine limit (requested {:.1} mm/s)",
-                s.allowed, s.requested
-            ),
-            line_text: None,
-        });
-    }
-    problems.sort_by_key(|p| (p.span.line, p.span.column));
-    CheckReport {
-        problems,
-        end_time,
-        slow_moves: slow.total,
-        error_count,
-        warning_count,
-    }
-}
-
-/// Bytes Klipper's batch mode reads from its input at a time.
-const KLIPPER_INPUT_BLOCK: u64 = 4096;
-
-/// Plan a whole G-code stream on `setup`, handing planned moves to `sink`. Memory stays bounded: the
-/// stream is read line by line and the lookahead holds at most a few seconds of moves.
-pub fn plan_gcode<S: MoveSink>(
-    setup: &MachineSetup,
-    input: impl BufRead,
-    source_name: &str,
-    sink: S,
-) -> Result<(S, PlanSummary), PipelineError> {
-    let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), sink);
-    let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
-    let mut commands = Commands::from_reader(input, source_name);
-    // A file is printed on a homed machine: start at the homing pose.
-    if let Some(home) = setup.home_position {
-        planner.start_at(home);
-        let mut position = commands.interpreter().last_position();
-        position[..3].copy_from_slice(&home);
-        commands.interpreter_mut().set_position(position);
-    }
-    let mut block = 0u64;
-    while let Some(command) = commands.next_command() {
-        let command = command?;
-        // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
-        let line_end_block =
-            commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
-        while block < line_end_block {
-            planner.input_block_boundary();
-            block += 1;
-        }
-        match planner.command(&command) {
-            Ok(Some(position)) => commands.interpreter_mut().set_position(position),
-            Ok(None) => {}
-            Err(e) if setup.planner.skip_unreachable && e.is_unreachable() => {
-                planner.warn(e.span, e.kind.to_string());
-                // The machine stays where it was (later relative moves continue from there); the skipped
-                // move's filament is not pushed by the next one.
-                let position = planner.skip(&command);
-                commands.interpreter_mut().set_position(position);
-            }
-            Err(e) => return Err(e.into()),
-        }
-    }
-    let gcode_warnings = commands.take_warnings();
-    let (sink, end_time, warnings, slow_moves) = planner.finish();
-    Ok((
-        sink,
-        PlanSummary {
-            end_time,
-            warnings,
-            gcode_warnings,
-            slow_moves,
-        },
-    ))
 }

@@ -161,7 +161,7 @@ impl Figure {
     }
 
     pub fn write_svg(&self, path: &Path) -> Result<(), PlotError> {
-        crate::write_atomically(path, self.to_svg()?.as_bytes())
+        Ok(outfile::write_bytes(path, self.to_svg()?.as_bytes())?)
     }
 
     /// The figure as PNG bytes.
@@ -171,7 +171,7 @@ impl Figure {
     }
 
     pub fn write_png(&self, path: &Path) -> Result<(), PlotError> {
-        crate::write_atomically(path, &self.to_png()?)
+        Ok(outfile::write_bytes(path, &self.to_png()?)?)
     }
 
     fn check_size(&self) -> Result<(), PlotError> {

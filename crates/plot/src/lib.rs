@@ -12,7 +12,7 @@ mod png_out;
 mod svg;
 pub mod workspace;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 pub use colour::{ColourScale, Rgb};
 pub use figure::{Figure, Grid, Layer, Legend};
@@ -20,11 +20,8 @@ pub use figure::{Figure, Grid, Layer, Legend};
 /// Why a picture could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum PlotError {
-    #[error("cannot write {path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Output(#[from] outfile::OutputError),
     #[error("drawing failed: {0}")]
     Render(String),
     #[error("PNG encoding of {path} failed: {message}")]
@@ -33,23 +30,4 @@ pub enum PlotError {
     GridSize { nx: usize, ny: usize, len: usize },
     #[error("figure size {width}×{height} px is unusable")]
     BadSize { width: u32, height: u32 },
-}
-
-/// Writes `bytes` to a temporary file beside `path` and renames it into place, so a failed run leaves
-/// no half-written picture.
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), PlotError> {
-    let io = |source| PlotError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "plot".into());
-    let tmp = path.with_file_name(format!(".{name}.tmp"));
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
-    })
 }

@@ -13,7 +13,7 @@ pub enum SimulationError {
     #[error("believed machine: {0}")]
     Setup(#[from] motion::machine::SetupError),
     #[error(transparent)]
-    Plan(#[from] motion::machine::PipelineError),
+    Plan(#[from] printjob::PipelineError),
     #[error("step generation: {0}")]
     Steps(#[from] stepgen::StepError),
     #[error("the true machine has no pose for the motor positions at t = {time:.4} s: {source}")]

@@ -1,9 +1,10 @@
 //! `jointspace calibrate`: the polar bed's rotation centre from a Hall-sensor magnet scan (simulated or logged),
 //! and SCARA arm geometry from measured nozzle positions.
 
-use calibrate::scan::{CentreResult, ScanParams};
+use crate::magnets::{SimulatedBed, draw_magnet_map, simulate_scan};
+use crate::report;
+use calibrate::scan::ScanParams;
 use calibrate::scara::{self, Measurement, ScaraGeometry};
-use plot::{Figure, Layer, Rgb};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -96,7 +97,7 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
 }
 
 /// Scan settings for the arguments.
-pub fn scan_params(args: &CentreArgs) -> ScanParams {
+fn scan_params(args: &CentreArgs) -> ScanParams {
     ScanParams {
         magnet_count: args.magnets,
         sensor_alignment: args.sensor_alignment,
@@ -116,7 +117,8 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
             .map_err(|e| miette::miette!("{e}"))?;
         (result, None)
     } else if args.simulate {
-        simulate_scan(&args, &params)?
+        let (result, truth) = simulate_scan(&simulated_bed(&args)?, &params)?;
+        (result, Some(truth))
     } else {
         return Err(miette::miette!("give --simulate or --scan FILE"));
     };
@@ -146,7 +148,7 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
             serde_json::to_string_pretty(&result).map_err(|e| miette::miette!("{e}"))?
         );
     } else {
-        crate::out!("{}", render_centre(&result, truth));
+        crate::out!("{}", report::centre(&result, truth));
         if !crate::output::is_stdio(&args.out) {
             crate::outln!("  result written to {}", args.out.display());
         }
@@ -160,113 +162,18 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Scan a simulated bed; the result and the true offsets.
-pub fn simulate_scan(
-    args: &CentreArgs,
-    params: &ScanParams,
-) -> miette::Result<(CentreResult, Option<[f64; 2]>)> {
-    let mut bed = sim::hall::HallBedConfig {
-        magnet_count: args.magnets,
+/// The simulated bed of the arguments.
+fn simulated_bed(args: &CentreArgs) -> miette::Result<SimulatedBed> {
+    let offset = match &args.offset {
+        Some(text) => Some(parse_pair(text, "--offset")?),
+        None => None,
+    };
+    Ok(SimulatedBed {
+        magnets: args.magnets,
+        noise_mt: args.noise,
         seed: args.seed,
-        ..Default::default()
-    };
-    bed.sensor.noise = args.noise * 1e-3;
-    bed = match &args.offset {
-        Some(text) => {
-            let [dx, dy] = parse_pair(text, "--offset")?;
-            sim::hall::HallBedConfig {
-                arm_zero_offset: dx,
-                arm_lateral_offset: dy,
-                ..bed
-            }
-        }
-        None => bed.random_offsets(2.0, args.seed),
-    };
-    let truth = [bed.arm_zero_offset, bed.arm_lateral_offset];
-    let mut scanner = sim::hall::HallScanner::new(bed).map_err(|e| miette::miette!("{e}"))?;
-    let result =
-        calibrate::scan::scan_centre(&mut scanner, params).map_err(|e| miette::miette!("{e}"))?;
-    Ok((result, Some(truth)))
-}
-
-pub fn render_centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
-    let mut out = format!(
-        "rotation centre: arm_zero_offset {:+.4} mm (±{:.4}), arm_lateral_offset {:+.4} mm (±{:.4})\n",
-        r.arm_zero_offset,
-        r.sigma_arm_zero_offset,
-        r.arm_lateral_offset,
-        r.sigma_arm_lateral_offset
-    );
-    out += &format!(
-        "  {} of {} magnets seen, {} pairs used; scan takes {:.0} s on the machine ({} sensor readings)\n",
-        r.detected, r.magnet_count, r.pairs_used, r.scan_time, r.sensor_reads
-    );
-    out += &format!(
-        "  uncertainty: scan ±{:.4} / ±{:.4} mm, sensor alignment to the nozzle ±{:.4} mm (not observable by \
-         a scan; --sensor-alignment)\n",
-        r.sigma_scan[0], r.sigma_scan[1], r.sensor_alignment
-    );
-    for flag in &r.flags {
-        out += &format!("  warning: {flag}\n");
-    }
-    if let Some([dx, dy]) = truth {
-        let error = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
-        out += &format!(
-            "  simulated truth: {dx:+.4}, {dy:+.4} mm; error of the estimate {error:.4} mm\n"
-        );
-    }
-    out
-}
-
-pub fn draw_magnet_map(r: &CentreResult, png: &Path) -> miette::Result<()> {
-    let data = r.plot_data();
-    let mut figure = Figure::new("Magnet map: measured magnet centres and the fitted ring");
-    figure.notes.push(format!(
-        "centre offset dx {:+.4} mm, dy {:+.4} mm; residuals drawn ×100",
-        r.arm_zero_offset, r.arm_lateral_offset
-    ));
-    if let Some(ring) = data.ring {
-        figure = figure.with_layer(Layer::Circle {
-            centre: [ring.cx, ring.cy],
-            radius: ring.r,
-            colour: Rgb(120, 120, 120),
-            width: 1.0,
-        });
-    }
-    let segments: Vec<[[f64; 2]; 2]> = data
-        .points
-        .iter()
-        .zip(&data.residual_vectors)
-        .map(|(p, v)| {
-            [
-                [p[0] - v[0], p[1] - v[1]],
-                [p[0] - v[0] + 100.0 * v[0], p[1] - v[1] + 100.0 * v[1]],
-            ]
-        })
-        .collect();
-    for segment in segments {
-        figure = figure.with_layer(Layer::Polyline {
-            points: segment.to_vec(),
-            colour: Rgb(200, 60, 40),
-            width: 2.0,
-        });
-    }
-    figure = figure
-        .with_layer(Layer::Points {
-            points: data.points.clone(),
-            colour: Rgb(30, 90, 200),
-            radius_px: 4.0,
-        })
-        .with_layer(Layer::Points {
-            points: vec![data.rotation_centre],
-            colour: Rgb(0, 0, 0),
-            radius_px: 3.0,
-        });
-    figure.write_png(png).map_err(|e| miette::miette!("{e}"))?;
-    figure
-        .write_svg(&png.with_extension("svg"))
-        .map_err(|e| miette::miette!("{e}"))?;
-    Ok(())
+        offset,
+    })
 }
 
 fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
@@ -383,8 +290,8 @@ fn start_geometry(config: Option<&Path>) -> miette::Result<ScaraGeometry> {
     let Some(path) = config else {
         return Ok(ScaraGeometry::fekt());
     };
-    let (machine, _) = super::run::load_machine(path)?;
-    match machine.params {
+    let machine = crate::machine::load_machine(path)?;
+    match machine.config.params {
         kinematics::MachineParams::Scara(p) => Ok(ScaraGeometry::from(&p)),
         _ => Err(miette::miette!("{}: not a SCARA machine", path.display())),
     }

@@ -138,11 +138,11 @@ impl From<miette::Report> for Failure {
 }
 
 fn convert_file(args: Args) -> Result<ExitCode, Failure> {
-    let (machine, setup) = super::run::load_machine(&args.config)?;
+    let machine = crate::machine::load_machine(&args.config)?;
     let mut options = options(&args)?;
     // The machine starts where homing leaves it; without a homing pose nothing unknown is guessed.
-    options.home = setup.home_position;
-    let map = axis_map(&args, &machine.params)?;
+    options.home = machine.setup.home_position;
+    let map = axis_map(&args, &machine.config.params)?;
     if args.verify && output::is_stdio(&args.file) {
         return Err(
             miette::miette!("--verify re-reads the input: give it as a file, not `-`").into(),
@@ -294,7 +294,7 @@ fn print_text(
             } else {
                 args.out.display().to_string()
             },
-            render_verify(r)
+            crate::report::verify(r)
         );
         // With `-o -` standard output is the G-code: the report goes to standard error.
         if output::is_stdio(&args.out) {
@@ -342,24 +342,6 @@ pub fn verify_problem(r: &convert::VerifyReport, options: &ConvertOptions) -> Op
         ));
     }
     None
-}
-
-/// The verification figures in one line.
-pub fn render_verify(r: &convert::VerifyReport) -> String {
-    format!(
-        "max deviation {:.4} mm at ({:.2}, {:.2}), RMS {:.5} mm over {} segments; filament {:.5} → {:.5} mm; \
-         time {:.1} → {:.1} s ({:.1} s turning at the centre)",
-        r.max_deviation,
-        r.worst_point[0],
-        r.worst_point[1],
-        r.rms_deviation,
-        r.segments,
-        r.extrusion_in,
-        r.extrusion_out,
-        r.time_in,
-        r.time_out,
-        r.flip_time
-    )
 }
 
 fn options(args: &Args) -> miette::Result<ConvertOptions> {

@@ -1,9 +1,11 @@
 //! `jointspace demo`: the whole pipeline on the bundled example machines and jointspace's own test prints,
 //! with a report and pictures in the output folder.
 
-use crate::cmd::{calibrate, run, workspace};
+use crate::machine::load_machine;
+use crate::magnets::{SimulatedBed, draw_magnet_map, simulate_scan};
 use crate::output::write_atomically;
 use crate::testprint::TestPrint;
+use crate::{diag, maps, report};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -83,31 +85,25 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     .map_err(super::plain)?;
     write_atomically(&print_path, |w| Ok(w.write_all(gcode.as_bytes())?)).map_err(super::plain)?;
 
-    let (machine, setup) = run::load_machine(&config_path)?;
-    let home = setup.home_position;
+    let machine = load_machine(&config_path)?;
+    let home = machine.setup.home_position;
     let mut section = format!("== {} printer ({})\n", example.name, config_path.display());
-    let options = run::RunOptions {
-        clock_hz: 16e6,
-        ..Default::default()
-    };
-    let summary = run::execute(
+    let summary = printjob::run(
         &machine,
-        setup,
         gcode.as_bytes(),
         &print_path.display().to_string(),
-        &config_path.display().to_string(),
-        &options,
+        &printjob::RunOptions::default(),
+        crate::interrupt::requested,
     )
     .map_err(|e| match e {
-        run::ExecuteError::Pipeline(e) => run::pipeline_error(&print_path, e),
-        run::ExecuteError::Steps(e) => miette::miette!("{}: {e}", print_path.display()),
-        run::ExecuteError::Other(r) => r,
+        printjob::RunError::Plan(e) => diag::pipeline_error(&print_path, e),
+        other => miette::miette!("{}: {other}", print_path.display()),
     })?;
-    section += &run::render(&summary);
-    let figures = workspace::map_and_draw(&machine.params, 2.0, &dir, "workspace")?;
-    section += &workspace::render(&figures);
+    section += &report::run_summary(&summary);
+    let figures = maps::map_and_draw(&machine.config.params, 2.0, &dir, "workspace")?;
+    section += &report::workspace(&figures);
     if let Some(target) = example.convert_to {
-        section += &demo_conversion(&machine, home, &gcode, &print_path, &dir, target)?;
+        section += &demo_conversion(&machine.config, home, &gcode, &print_path, &dir, target)?;
     }
     let _ = writeln!(section);
     Ok(section)
@@ -153,37 +149,34 @@ fn demo_conversion(
         out_path.display(),
         stats.moves,
         stats.segments,
-        super::convert::render_verify(&report)
+        report::verify(&report)
     ))
 }
 
 /// A simulated Hall-sensor scan of a polar bed with a mis-centred arm: the fitted centre against the truth.
 fn demo_calibration(out: &Path) -> miette::Result<String> {
-    let args = calibrate::CentreArgs {
-        simulate: true,
-        scan: None,
-        save_scan: None,
-        sensor_alignment: 0.05,
+    let bed = SimulatedBed {
         magnets: 16,
-        offset: Some("0.8,-0.45".into()),
-        noise: 0.15,
+        noise_mt: 0.15,
         seed: 7,
-        out: out.join("calibration/centre.json"),
-        plot: Some(out.join("calibration/magnet-map.png")),
-        json: false,
+        offset: Some([0.8, -0.45]),
     };
-    std::fs::create_dir_all(out.join("calibration")).map_err(|e| miette::miette!("{e}"))?;
-    let (result, truth) = calibrate::simulate_scan(&args, &calibrate::scan_params(&args))?;
+    let params = calibrate::scan::ScanParams {
+        magnet_count: bed.magnets,
+        sensor_alignment: 0.05,
+        ..Default::default()
+    };
+    let dir = out.join("calibration");
+    std::fs::create_dir_all(&dir).map_err(|e| miette::miette!("{e}"))?;
+    let (result, truth) = simulate_scan(&bed, &params)?;
     result
-        .write_json(&args.out)
+        .write_json(&dir.join("centre.json"))
         .map_err(|e| miette::miette!("{e}"))?;
-    if let Some(png) = &args.plot {
-        calibrate::draw_magnet_map(&result, png)?;
-    }
+    draw_magnet_map(&result, &dir.join("magnet-map.png"))?;
     Ok(format!(
         "== centre calibration (simulated KY-024 scan of 16 magnets; {})\n{}\n",
         out.join("calibration").display(),
-        calibrate::render_centre(&result, truth)
+        report::centre(&result, Some(truth))
     ))
 }
 

@@ -1,6 +1,5 @@
 //! One module per subcommand.
 
-mod audit;
 pub mod calibrate;
 pub mod convert;
 pub mod demo;

@@ -110,8 +110,8 @@ fn simulate_file(
     bar.finish_and_clear();
     result.map_err(|e| match e {
         // A planning error names the G-code file, line and column.
-        SimulationError::Plan(plan @ motion::machine::PipelineError::Plan(_)) => {
-            crate::cmd::run::pipeline_error(path, plan)
+        SimulationError::Plan(plan @ printjob::PipelineError::Plan(_)) => {
+            diag::pipeline_error(path, plan)
         }
         other => report_error(&other),
     })
@@ -121,7 +121,7 @@ fn simulate_file(
 fn report_error(e: &SimulationError) -> miette::Report {
     match e {
         SimulationError::Config(c) => miette::Report::new(diag::config_error(c)),
-        SimulationError::Plan(motion::machine::PipelineError::Gcode(g)) => {
+        SimulationError::Plan(printjob::PipelineError::Gcode(g)) => {
             miette::Report::new(diag::gcode_error(g))
         }
         other => miette::miette!("{other}"),

@@ -46,8 +46,7 @@ fn plan_case(case: &Path) -> Vec<(Queue, TrapezoidMove)> {
     let sink = |queue: Queue, mv: &TrapezoidMove| rows.push((queue, *mv));
     let input = std::fs::File::open(case.join("input.gcode")).expect("input opens");
     let (_sink, _summary) =
-        motion::machine::plan_gcode(&setup, BufReader::new(input), "input.gcode", sink)
-            .expect("plans");
+        printjob::plan_gcode(&setup, BufReader::new(input), "input.gcode", sink).expect("plans");
     rows
 }
 

@@ -6,8 +6,11 @@ use std::io::BufReader;
 use std::path::Path;
 
 use kinematics::{Kinematics, MotorUnit};
-use motion::machine::{MachineSetup, plan_gcode};
+use motion::machine::MachineSetup;
 use stepgen::{StepProblem, net_agrees};
+
+use crate::machine::{Machine, PlanOptions};
+use crate::plan::plan_gcode;
 
 /// A step stream a real MCU could not execute.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,6 +32,7 @@ impl std::fmt::Display for StepStreamError {
 }
 
 /// One motor as the audit sees it.
+#[derive(Debug)]
 pub struct AuditedMotor<'a> {
     pub name: &'a str,
     /// The first step the audit found too close to the one before it.
@@ -80,10 +84,16 @@ pub fn period_of(kin: &dyn Kinematics, motor: usize) -> Option<f64> {
         .map(|_| std::f64::consts::TAU)
 }
 
+/// The G-code line a step problem at print time `time` comes from, planning `file` again on `machine` as the run
+/// did (`plan`). `None` when the file cannot be read again (standard input).
+pub fn locate(machine: &Machine, plan: PlanOptions, file: &Path, time: f64) -> Option<u64> {
+    line_at_time(&machine.setup_with(plan).ok()?, file, time)
+}
+
 /// The G-code line whose move runs at print time `time`, found by planning `file` again on `setup` (the line of
 /// the last move that starts by then). `None` when the file cannot be read again.
 pub fn line_at_time(setup: &MachineSetup, file: &Path, time: f64) -> Option<u64> {
-    if file == Path::new("-") {
+    if outfile::is_stdio(file) {
         return None;
     }
     let input = BufReader::new(std::fs::File::open(file).ok()?);
@@ -98,6 +108,7 @@ pub fn line_at_time(setup: &MachineSetup, file: &Path, time: f64) -> Option<u64>
 }
 
 /// Keeps the origin of the last move starting at or before `time`.
+#[derive(Debug)]
 struct Locator {
     time: f64,
     origin: u64,
@@ -115,3 +126,5 @@ impl trapq::MoveSink for Locator {
         self.origin = origin;
     }
 }
+
+impl std::error::Error for StepStreamError {}

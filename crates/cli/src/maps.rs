@@ -1,0 +1,184 @@
+//! Workspace maps: where a machine reaches and how fine its motion is across the bed, as numbers and pictures.
+
+use kinematics::workspace::{self, ResolutionKind, WorkspaceMap};
+use plot::workspace::{Outline, ResolutionLayer, WorkspaceData};
+use serde::Serialize;
+use std::path::Path;
+
+/// The finest and coarsest resolution of one motor (or the machine's worst direction), with where they are.
+#[derive(Debug, Clone, Serialize)]
+pub struct ResolutionRange {
+    pub name: String,
+    /// mm of nozzle travel per step.
+    pub finest: f64,
+    pub finest_at: [f64; 2],
+    pub coarsest: f64,
+    pub coarsest_at: [f64; 2],
+}
+
+/// The numbers a builder compares machines by.
+#[derive(Debug, Clone, Serialize)]
+pub struct WorkspaceFigures {
+    pub machine: String,
+    pub reachable_area_mm2: f64,
+    /// Per motor, then for the machine's worst direction.
+    pub resolution: Vec<ResolutionRange>,
+    pub pictures: Vec<String>,
+}
+
+/// Map the workspace, write the pictures into `dir` as `<stem>-*.png/svg`, return the numbers.
+pub fn map_and_draw(
+    params: &kinematics::MachineParams,
+    cell_mm: f64,
+    dir: &Path,
+    stem: &str,
+) -> miette::Result<WorkspaceFigures> {
+    let map = workspace::map_machine(params, cell_mm, 0.0).map_err(|e| miette::miette!("{e}"))?;
+    let area = map.summary.reachable_area_mm2;
+    if area.is_nan() || area <= 0.0 {
+        return Err(miette::miette!(
+            "the {} machine reaches no point of the bed on a {cell_mm} mm grid: check its lengths, limits and \
+             base_protection_radius (nothing was written)",
+            map.machine
+        ));
+    }
+    // The maps are `<stem>-….png/svg`: none of them may be an input of this run.
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for entry in entries.flatten() {
+            if entry.file_name().to_string_lossy().starts_with(stem) {
+                crate::output::refuse_input(&entry.path()).map_err(crate::cmd::plain)?;
+            }
+        }
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
+    let written = plot::workspace::write_workspace_maps(&workspace_data(&map), dir, stem)
+        .map_err(|e| miette::miette!("{e}"))?;
+    let range = |name: &str, r: &workspace::Range| ResolutionRange {
+        name: name.to_string(),
+        finest: r.min.value,
+        finest_at: r.min.at,
+        coarsest: r.max.value,
+        coarsest_at: r.max.at,
+    };
+    let mut resolution: Vec<ResolutionRange> = map
+        .motor_names
+        .iter()
+        .zip(map.summary.per_motor.iter())
+        .filter_map(|(name, r)| r.as_ref().map(|r| range(name, r)))
+        .collect();
+    if let Some(r) = &map.summary.machine {
+        resolution.push(range("worst direction", r));
+    }
+    Ok(WorkspaceFigures {
+        machine: map.machine.to_string(),
+        reachable_area_mm2: map.summary.reachable_area_mm2,
+        resolution,
+        pictures: written.iter().map(|p| p.display().to_string()).collect(),
+    })
+}
+
+/// The plain data the plot crate draws.
+fn workspace_data(map: &WorkspaceMap) -> WorkspaceData {
+    let (labels, reach) = map.reach_categories();
+    let mut resolutions: Vec<ResolutionLayer> = map
+        .motor_names
+        .iter()
+        .enumerate()
+        .map(|(i, name)| ResolutionLayer {
+            name: name.clone(),
+            title: format!(
+                "{}: {name} resolution (mm of nozzle travel per step)",
+                map.machine
+            ),
+            values: map.resolution_values(ResolutionKind::Motor(i)),
+        })
+        .collect();
+    resolutions.push(ResolutionLayer {
+        name: "machine".into(),
+        title: format!("{}: worst-direction resolution (mm per step)", map.machine),
+        values: map.resolution_values(ResolutionKind::Machine),
+    });
+    let outline = match map.outline {
+        workspace::Outline::Circle { centre, radius } => Outline::Circle { centre, radius },
+        workspace::Outline::Rectangle { min, max } => Outline::Rectangle { min, max },
+    };
+    let s = &map.summary;
+    let mut notes = vec![format!(
+        "reachable area {:.0} mm² ({} of {} cells of {} mm)",
+        s.reachable_area_mm2,
+        s.reachable_cells,
+        map.cells.len(),
+        map.cell_mm
+    )];
+    if let Some(m) = s.machine {
+        notes.push(format!(
+            "worst-direction resolution {:.4} mm/step at ({:.0}, {:.0}) … {:.4} at ({:.0}, {:.0})",
+            m.min.value, m.min.at[0], m.min.at[1], m.max.value, m.max.at[0], m.max.at[1]
+        ));
+    }
+    WorkspaceData {
+        machine: map.machine.to_string(),
+        x_min: map.bounds.x_min,
+        y_min: map.bounds.y_min,
+        cell_mm: map.cell_mm,
+        nx: map.nx,
+        ny: map.ny,
+        outline,
+        reach_labels: labels.into_iter().map(String::from).collect(),
+        reach,
+        resolutions,
+        notes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn maps_of_the_example_machines_write_every_picture_with_sane_numbers() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        // The polar map needs the bed radius: the arm's travel.
+        let arm = kinematics::StepperParams {
+            position_max: Some(150.0),
+            ..kinematics::StepperParams::new("stepper_arm", 1.0 / 80.0)
+        };
+        let polar = kinematics::PolarParams {
+            arm,
+            ..kinematics::PolarParams::klipper_example()
+        };
+        let machines = [
+            ("polar", kinematics::MachineParams::Polar(polar)),
+            (
+                "scara",
+                kinematics::MachineParams::Scara(kinematics::ScaraParams::fekt_example()),
+            ),
+        ];
+        for (stem, params) in machines {
+            let figures = map_and_draw(&params, 10.0, dir.path(), stem).expect("maps");
+            // Reach, two motors and the worst direction, each as PNG and SVG.
+            assert_eq!(figures.pictures.len(), 8, "{stem}");
+            for path in &figures.pictures {
+                let bytes = std::fs::read(path).expect("picture");
+                if path.ends_with(".png") {
+                    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{path}");
+                } else {
+                    let text = String::from_utf8(bytes).expect("svg is text");
+                    assert!(
+                        text.contains("<svg") && text.trim_end().ends_with("</svg>"),
+                        "{path}"
+                    );
+                }
+            }
+            assert!(figures.reachable_area_mm2 > 0.0);
+            for r in &figures.resolution {
+                assert!(
+                    r.finest > 0.0 && r.finest <= r.coarsest,
+                    "{stem} {}: {r:?}",
+                    r.name
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,142 @@
+//! Results as text, for the commands that print them and for the demo's report.
+
+use crate::maps::WorkspaceFigures;
+use calibrate::scan::CentreResult;
+use printjob::RunSummary;
+
+/// A run's summary as text: print time, moves, steps and peak rates per motor, warnings.
+pub fn run_summary(r: &RunSummary) -> String {
+    let mut out = format!("{} on {} ({})\n", r.file, r.config, r.kinematics);
+    let total = r.print_time_s.max(0.0);
+    out += &format!(
+        "  print time   {:.1} s ({}h{:02}m{:02}s)\n",
+        total,
+        (total / 3600.0) as u64,
+        ((total % 3600.0) / 60.0) as u64,
+        (total % 60.0) as u64
+    );
+    out += &format!(
+        "  moves        {} toolhead, {} extruder\n",
+        r.toolhead_moves, r.extruder_moves
+    );
+    out += &format!(
+        "  steps        {} in all, computed in {:.3} s\n",
+        r.total_steps, r.wall_time_s
+    );
+    out += "  motor             steps        net   peak rate (1 ms)   min interval\n";
+    for m in &r.motors {
+        let interval = m
+            .min_interval_ticks
+            .map_or("-".to_string(), |t| format!("{t} ticks"));
+        out += &format!(
+            "  {:<14} {:>9} {:>10} {:>12.0} steps/s   {:>12}\n",
+            m.name, m.steps, m.net_steps, m.peak_rate_1ms, interval
+        );
+        if let Some(limit) = m.over_max_step_rate {
+            out += &format!(
+                "    warning: {} exceeds its max_step_rate of {limit:.0} steps/s\n",
+                m.name
+            );
+        }
+        if m.filtered_pairs > 0 {
+            out += &format!(
+                "    {} step pairs removed by the step+dir+step filter\n",
+                m.filtered_pairs
+            );
+        }
+    }
+    if r.slowed_moves > 0 {
+        out += &format!(
+            "  {} moves slowed below 25% of their requested speed by machine limits\n",
+            r.slowed_moves
+        );
+    }
+    for w in r.warnings.iter().take(20) {
+        out += &format!(
+            "  {}:{}:{}: warning: {}\n",
+            r.file, w.line, w.column, w.message
+        );
+    }
+    if r.warnings.len() > 20 {
+        out += &format!(
+            "  … and {} more warnings (see --json)\n",
+            r.warnings.len() - 20
+        );
+    }
+    out
+}
+
+/// A workspace map's numbers: reachable area, and the finest and coarsest resolution per motor.
+pub fn workspace(f: &WorkspaceFigures) -> String {
+    let mut out = format!(
+        "{} workspace: {:.0} mm² reachable\n",
+        f.machine, f.reachable_area_mm2
+    );
+    out += "  mm of nozzle travel per step   finest   at            coarsest   at\n";
+    for r in &f.resolution {
+        out += &format!(
+            "  {:<28} {:>8.4}   ({:>5.0},{:>5.0})   {:>8.4}   ({:>5.0},{:>5.0})\n",
+            r.name,
+            r.finest,
+            r.finest_at[0],
+            r.finest_at[1],
+            r.coarsest,
+            r.coarsest_at[0],
+            r.coarsest_at[1]
+        );
+    }
+    out += &format!(
+        "  {} pictures written (reach, per-motor and worst-direction maps)\n",
+        f.pictures.len()
+    );
+    out
+}
+
+/// A centre scan's result: the offsets with their uncertainty, what the scan saw, and against the truth when
+/// simulated.
+pub fn centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
+    let mut out = format!(
+        "rotation centre: arm_zero_offset {:+.4} mm (±{:.4}), arm_lateral_offset {:+.4} mm (±{:.4})\n",
+        r.arm_zero_offset,
+        r.sigma_arm_zero_offset,
+        r.arm_lateral_offset,
+        r.sigma_arm_lateral_offset
+    );
+    out += &format!(
+        "  {} of {} magnets seen, {} pairs used; scan takes {:.0} s on the machine ({} sensor readings)\n",
+        r.detected, r.magnet_count, r.pairs_used, r.scan_time, r.sensor_reads
+    );
+    out += &format!(
+        "  uncertainty: scan ±{:.4} / ±{:.4} mm, sensor alignment to the nozzle ±{:.4} mm (not observable by \
+         a scan; --sensor-alignment)\n",
+        r.sigma_scan[0], r.sigma_scan[1], r.sensor_alignment
+    );
+    for flag in &r.flags {
+        out += &format!("  warning: {flag}\n");
+    }
+    if let Some([dx, dy]) = truth {
+        let error = (r.arm_zero_offset - dx).hypot(r.arm_lateral_offset - dy);
+        out += &format!(
+            "  simulated truth: {dx:+.4}, {dy:+.4} mm; error of the estimate {error:.4} mm\n"
+        );
+    }
+    out
+}
+
+/// The verification figures in one line.
+pub fn verify(r: &convert::VerifyReport) -> String {
+    format!(
+        "max deviation {:.4} mm at ({:.2}, {:.2}), RMS {:.5} mm over {} segments; filament {:.5} → {:.5} mm; \
+         time {:.1} → {:.1} s ({:.1} s turning at the centre)",
+        r.max_deviation,
+        r.worst_point[0],
+        r.worst_point[1],
+        r.rms_deviation,
+        r.segments,
+        r.extrusion_in,
+        r.extrusion_out,
+        r.time_in,
+        r.time_out,
+        r.flip_time
+    )
+}

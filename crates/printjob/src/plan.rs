@@ -1,0 +1,115 @@
+//! Planning a whole G-code stream on a machine: typed commands from the reader into Klipper's toolhead.
+
+use std::io::BufRead;
+
+use gcode::{Commands, GcodeError};
+use motion::machine::MachineSetup;
+use motion::{PlanError, Planner, SlowMoves, Toolhead, Warning};
+use trapq::MoveSink;
+
+/// Why planning stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Gcode(#[from] GcodeError),
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+}
+
+impl PipelineError {
+    /// The G-code line and column it stopped at.
+    pub fn place(&self) -> (u64, u32) {
+        let span = match self {
+            PipelineError::Gcode(e) => e.span,
+            PipelineError::Plan(e) => e.span,
+        };
+        (span.line, span.column)
+    }
+
+    /// What went wrong, without the place.
+    pub fn message(&self) -> String {
+        match self {
+            PipelineError::Gcode(e) => e.kind.to_string(),
+            PipelineError::Plan(e) => e.kind.to_string(),
+        }
+    }
+}
+
+/// What planning a stream produced besides the moves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanSummary {
+    /// Print time at which the last move ends (s).
+    pub end_time: f64,
+    pub warnings: Vec<Warning>,
+    pub gcode_warnings: Vec<gcode::Warning>,
+    /// Moves a machine limit slowed below a quarter of their requested speed.
+    pub slow_moves: SlowMoves,
+}
+
+/// The reader and the planner of one stream, both at the machine's homing pose (a file is printed on a homed
+/// machine).
+pub(crate) fn start<'a, R: BufRead, S: MoveSink>(
+    setup: &'a MachineSetup,
+    input: R,
+    source_name: &str,
+    sink: S,
+) -> (Commands<R>, Planner<'a, S>) {
+    let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), sink);
+    let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
+    let mut commands = Commands::from_reader(input, source_name);
+    if let Some(home) = setup.home_position {
+        planner.start_at(home);
+        let mut position = commands.interpreter().last_position();
+        position[..3].copy_from_slice(&home);
+        commands.interpreter_mut().set_position(position);
+    }
+    (commands, planner)
+}
+
+/// Bytes Klipper's batch mode reads from its input at a time.
+const KLIPPER_INPUT_BLOCK: u64 = 4096;
+
+/// Plan a whole G-code stream on `setup`, handing planned moves to `sink`. Memory stays bounded: the
+/// stream is read line by line and the lookahead holds at most a few seconds of moves.
+pub fn plan_gcode<S: MoveSink>(
+    setup: &MachineSetup,
+    input: impl BufRead,
+    source_name: &str,
+    sink: S,
+) -> Result<(S, PlanSummary), PipelineError> {
+    let (mut commands, mut planner) = start(setup, input, source_name, sink);
+    let mut block = 0u64;
+    while let Some(command) = commands.next_command() {
+        let command = command?;
+        // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
+        let line_end_block =
+            commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
+        while block < line_end_block {
+            planner.input_block_boundary();
+            block += 1;
+        }
+        match planner.command(&command) {
+            Ok(Some(position)) => commands.interpreter_mut().set_position(position),
+            Ok(None) => {}
+            Err(e) if setup.planner.skip_unreachable && e.is_unreachable() => {
+                planner.warn(e.span, e.kind.to_string());
+                // The machine stays where it was (later relative moves continue from there); the skipped
+                // move's filament is not pushed by the next one.
+                let position = planner.skip(&command);
+                commands.interpreter_mut().set_position(position);
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+    let gcode_warnings = commands.take_warnings();
+    let (sink, end_time, warnings, slow_moves) = planner.finish();
+    Ok((
+        sink,
+        PlanSummary {
+            end_time,
+            warnings,
+            gcode_warnings,
+            slow_moves,
+        },
+    ))
+}

@@ -67,6 +67,8 @@ pub struct RotationCentre {
     pub tolerance: f64,
     /// The bed motor's index.
     pub bed: usize,
+    /// How far from the centre the arm reaches (its `position_max`, mm), when configured: the bed's rim.
+    pub rim: Option<f64>,
 }
 
 /// The largest deviation from the G-code path that jointspace allows itself anywhere (mm): at the polar centre,
@@ -183,6 +185,17 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// The point where a bed angle is undefined, for machines that have one (an ideal polar machine).
     fn rotation_centre(&self) -> Option<RotationCentre> {
         None
+    }
+
+    /// The toolhead pose after homing, from each motor's endstop position (motor order, motor units; `None` where
+    /// a motor has none): `None` when the machine cannot home from these. A machine's own convention fills in what
+    /// its endstops leave open (a polar bed's angle is declared 0, as Klipper does).
+    fn home_pose(&self, endstops: &[Option<f64>]) -> Result<Option<Vec3>, ReachError> {
+        let motors: Option<Vec<f64>> = endstops.iter().copied().collect();
+        match motors {
+            Some(motors) if motors.len() == self.motors().len() => self.forward(&motors).map(Some),
+            _ => Ok(None),
+        }
     }
 
     /// Whether the toolhead must come to rest at `p` (a SCARA arm in its singular band: nearly straight or

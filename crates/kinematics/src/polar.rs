@@ -122,7 +122,23 @@ impl Kinematics for Polar {
             point: [0.0, 0.0],
             tolerance: self.centre_tolerance(),
             bed: BED,
+            rim: self.params.arm.position_max.filter(|r| *r > 0.0),
         })
+    }
+
+    /// The arm at its endstop, the bed declared at angle 0 (a bed endstop, if any, is not used here).
+    fn home_pose(&self, endstops: &[Option<f64>]) -> Result<Option<Vec3>, ReachError> {
+        match (
+            endstops.get(ARM).copied().flatten(),
+            endstops.get(Z).copied().flatten(),
+        ) {
+            (Some(arm), Some(z)) => {
+                let mut motors = [0.0; 3];
+                write_motors(&mut motors, 0.0, arm, z);
+                self.forward(&motors).map(Some)
+            }
+            _ => Ok(None),
+        }
     }
 
     fn inverse(&self, p: Vec3, motors: &mut [f64]) -> Result<(), ReachError> {

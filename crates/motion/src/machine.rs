@@ -100,10 +100,7 @@ fn centre_turn(
     limits: &[MotorLimit],
 ) -> Option<CentreTurn> {
     let centre = kin.rotation_centre()?;
-    let radius = machine
-        .stepper("stepper_arm")
-        .and_then(|s| s.position_max)
-        .filter(|r| *r > 0.0)?;
+    let radius = centre.rim?;
     let l = &machine.limits;
     let bed = limits.iter().find(|m| m.motor == centre.bed);
     Some(CentreTurn {
@@ -118,47 +115,41 @@ fn centre_turn(
     })
 }
 
-/// The toolhead pose after every axis has run to its endstop. Polar: the arm at its endstop, the bed angle
-/// declared 0 (as Klipper does). SCARA: the declared `home_position` when the config has one (FEKT-SCARA), else
-/// each joint at its endstop angle (degrees in the file), the elbow motor's reading converted through the
-/// coupling by the forward kinematics. Cartesian: every axis at its endstop.
+/// The toolhead pose after homing: the declared `home_position` when the config has one (FEKT-SCARA), else the
+/// kinematics' pose for the motors' endstop positions (angles in degrees in the file), checked to be reachable.
 fn home_position(
     machine: &MachineConfig,
     kin: &dyn Kinematics,
 ) -> Result<Option<[f64; 3]>, SetupError> {
-    let endstop = |name: &str| {
-        machine
-            .stepper(name)
-            .and_then(|s| s.homing.as_ref())
-            .and_then(|h| h.position_endstop)
-    };
-    let pose = match machine.kinematics {
-        KinematicsKind::Cartesian => match (
-            endstop("stepper_x"),
-            endstop("stepper_y"),
-            endstop("stepper_z"),
-        ) {
-            (Some(x), Some(y), Some(z)) => Some([x, y, z]),
-            _ => None,
-        },
-        KinematicsKind::Polar => match (endstop("stepper_arm"), endstop("stepper_z")) {
-            (Some(arm), Some(z)) => Some(kin_forward(kin, &[0.0, arm, z])?),
-            _ => None,
-        },
-        KinematicsKind::Scara => match (
-            declared_home(machine, endstop("stepper_z")),
-            endstop("stepper_a"),
-            endstop("stepper_b"),
-            endstop("stepper_z"),
-        ) {
-            (Some(pose), ..) => Some(declared_pose(kin, pose)?),
-            (None, Some(a), Some(b), Some(z)) => {
-                Some(kin_forward(kin, &[a.to_radians(), b.to_radians(), z])?)
+    let z_endstop = endstop(machine, "stepper_z");
+    if let Some(pose) = declared_home(machine, z_endstop) {
+        return declared_pose(kin, pose).map(Some);
+    }
+    let endstops: Vec<Option<f64>> = kin
+        .motors()
+        .iter()
+        .map(|motor| {
+            let position = endstop(machine, &motor.name);
+            match motor.unit {
+                MotorUnit::Rad => position.map(f64::to_radians),
+                MotorUnit::Mm => position,
             }
-            _ => None,
-        },
-    };
-    Ok(pose)
+        })
+        .collect();
+    let pose = kin
+        .home_pose(&endstops)
+        .map_err(|e| SetupError::NoHomePose {
+            reason: e.to_string(),
+        })?;
+    pose.map(|p| declared_pose(kin, p)).transpose()
+}
+
+/// A stepper's `position_endstop`, in the file's unit.
+fn endstop(machine: &MachineConfig, stepper: &str) -> Option<f64> {
+    machine
+        .stepper(stepper)
+        .and_then(|s| s.homing.as_ref())
+        .and_then(|h| h.position_endstop)
 }
 
 /// FEKT-SCARA's `home_position`: homing declares the arm there without moving it (its joint endstops, if any,
@@ -170,7 +161,7 @@ fn declared_home(machine: &MachineConfig, z_endstop: Option<f64>) -> Option<[f64
     Some([x, y, z])
 }
 
-/// A declared pose must be one the arm can take.
+/// A home pose must be one the machine can take.
 fn declared_pose(kin: &dyn Kinematics, pose: [f64; 3]) -> Result<[f64; 3], SetupError> {
     let mut motors = vec![0.0; kin.motors().len()];
     kin.inverse(pose, &mut motors)
@@ -180,17 +171,4 @@ fn declared_pose(kin: &dyn Kinematics, pose: [f64; 3]) -> Result<[f64; 3], Setup
             reason: e.to_string(),
         })?;
     Ok(pose)
-}
-
-fn kin_forward(kin: &dyn Kinematics, motors: &[f64]) -> Result<[f64; 3], SetupError> {
-    let p = kin.forward(motors).map_err(|e| SetupError::NoHomePose {
-        reason: e.to_string(),
-    })?;
-    let mut check = vec![0.0; kin.motors().len()];
-    kin.inverse(p, &mut check).map_err(|e| SetupError::Home {
-        x: p[0],
-        y: p[1],
-        reason: e.to_string(),
-    })?;
-    Ok(p)
 }

@@ -2,7 +2,9 @@
 
 use crate::maps::WorkspaceFigures;
 use calibrate::scan::CentreResult;
+use calibrate::scara::{self, Identification};
 use printjob::RunSummary;
+use std::fmt::Write as _;
 
 /// A run's summary as text: print time, moves, steps and peak rates per motor, warnings.
 pub fn run_summary(r: &RunSummary) -> String {
@@ -139,4 +141,60 @@ pub fn verify(r: &convert::VerifyReport) -> String {
         r.time_out,
         r.flip_time
     )
+}
+
+/// An identified SCARA geometry: each parameter with its uncertainty, the poses' condition, and which parameter
+/// combinations the poses cannot tell apart.
+pub fn scara_fit(fit: &Identification, measurements: usize) -> String {
+    let g = &fit.geometry;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "identified from {} measurements (residual RMS {:.4} mm):",
+        measurements, fit.rms
+    );
+    let values = [
+        g.link1_length,
+        g.link2_length,
+        g.offset_x,
+        g.offset_y,
+        g.shoulder_zero.to_degrees(),
+        g.elbow_zero.to_degrees(),
+        g.elbow_coupling,
+    ];
+    let sigmas = [
+        fit.sigma[0],
+        fit.sigma[1],
+        fit.sigma[2],
+        fit.sigma[3],
+        fit.sigma[4].to_degrees(),
+        fit.sigma[5].to_degrees(),
+        fit.sigma[6],
+    ];
+    for ((name, v), s) in scara::PARAM_NAMES.iter().zip(values).zip(sigmas) {
+        let _ = writeln!(text, "  {name:<16} {v:>12.5} ± {s:.5}");
+    }
+    let _ = writeln!(
+        text,
+        "  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)",
+        1.0 / g.elbow_coupling
+    );
+    let id = &fit.identifiability;
+    let _ = writeln!(
+        text,
+        "  condition number of the poses: {:.1}",
+        id.condition_number
+    );
+    for combination in &id.unidentifiable {
+        let terms: Vec<String> = combination
+            .iter()
+            .map(|(n, w)| format!("{w:+.2}·{n}"))
+            .collect();
+        let _ = writeln!(
+            text,
+            "  not identifiable from these poses: {}",
+            terms.join(" ")
+        );
+    }
+    text
 }

@@ -186,56 +186,8 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
             .map_err(|e| miette::miette!("{e}"))?;
     let fit = scara::identify(&data, &start).map_err(|e| miette::miette!("{e}"))?;
     let g = &fit.geometry;
-    let mut text = String::new();
-    let _ = writeln!(
-        text,
-        "identified from {} measurements (residual RMS {:.4} mm):",
-        data.len(),
-        fit.rms
-    );
-    let values = [
-        g.link1_length,
-        g.link2_length,
-        g.offset_x,
-        g.offset_y,
-        g.shoulder_zero.to_degrees(),
-        g.elbow_zero.to_degrees(),
-        g.elbow_coupling,
-    ];
-    let sigmas = [
-        fit.sigma[0],
-        fit.sigma[1],
-        fit.sigma[2],
-        fit.sigma[3],
-        fit.sigma[4].to_degrees(),
-        fit.sigma[5].to_degrees(),
-        fit.sigma[6],
-    ];
-    for ((name, v), s) in scara::PARAM_NAMES.iter().zip(values).zip(sigmas) {
-        let _ = writeln!(text, "  {name:<16} {v:>12.5} ± {s:.5}");
-    }
-    let _ = writeln!(
-        text,
-        "  (ecr = 1/elbow_coupling = {:.5}; zeros in degrees)",
-        1.0 / g.elbow_coupling
-    );
+    let mut text = report::scara_fit(&fit, data.len());
     let id = &fit.identifiability;
-    let _ = writeln!(
-        text,
-        "  condition number of the poses: {:.1}",
-        id.condition_number
-    );
-    for combination in &id.unidentifiable {
-        let terms: Vec<String> = combination
-            .iter()
-            .map(|(n, w)| format!("{w:+.2}·{n}"))
-            .collect();
-        let _ = writeln!(
-            text,
-            "  not identifiable from these poses: {}",
-            terms.join(" ")
-        );
-    }
     let json = serde_json::json!({
         "link1_length": g.link1_length, "link2_length": g.link2_length,
         "offset_x": g.offset_x, "offset_y": g.offset_y,

@@ -177,54 +177,23 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
     })
     .map_err(|e| convert_error(&args, e))?;
     bar.finish_and_clear();
-    for w in warnings.0.iter().take(20) {
-        eprintln!(
-            "{name}:{}:{}: warning: {}",
-            w.span.line, w.span.column, w.message
-        );
-    }
-    if warnings.1 > 20 {
-        eprintln!("{name}: … and {} more warnings", warnings.1 - 20);
-    }
-    let mut verification = None;
-    if args.verify {
-        let input = std::fs::File::open(&args.file)
-            .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
-        let commands = convert::read_commands(std::io::BufReader::new(input), &name)
-            .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
-        let written = match &copy {
-            Some(file) => file.reopen(),
-            None => std::fs::File::open(&args.out),
-        }
-        .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
-        let r = convert::verify(&map, &options, &commands, std::io::BufReader::new(written))
-            .map_err(|e| miette::miette!("{}: {e}", args.out.display()))?;
-        verification = Some(r);
-    }
+    print_warnings(&name, &warnings);
+    let verification = match args.verify {
+        true => Some(verify_written(&args, &map, &options, &name, copy.as_ref())?),
+        false => None,
+    };
     let problem = verification
         .as_ref()
         .and_then(|r| verify_problem(r, &options));
     if args.json {
-        let s = stats.unwrap_or_default();
-        let value = serde_json::json!({
-            "input": name,
-            "output": args.out.display().to_string(),
-            "moves": s.moves,
-            "segments": s.segments,
-            "centre_turns": s.flips,
-            "positioning_moves": s.positioning_moves,
-            "warnings": warnings.1,
-            "firmware": options.firmware.name(),
-            "verification": verification.as_ref().map(verify_json),
-            "verification_failure": problem,
-        });
-        let text = serde_json::to_string_pretty(&value).unwrap_or_default();
-        // With `-o -` standard output is the G-code: the report goes to standard error.
-        if output::is_stdio(&args.out) {
-            eprintln!("{text}");
-        } else {
-            crate::outln!("{text}");
-        }
+        let summary = JsonSummary {
+            name: &name,
+            stats: stats.unwrap_or_default(),
+            warnings: warnings.1,
+            verification: verification.as_ref(),
+            problem: problem.as_deref(),
+        };
+        print_json(&args, &options, &summary);
     } else {
         print_text(&args, &name, stats, verification.as_ref(), &options);
     }
@@ -233,6 +202,73 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
         return Ok(ExitCode::FAILURE);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The reader's warnings on standard error, the first 20 of them.
+fn print_warnings(name: &str, (warnings, total): &(Vec<gcode::Warning>, u64)) {
+    for w in warnings.iter().take(20) {
+        eprintln!(
+            "{name}:{}:{}: warning: {}",
+            w.span.line, w.span.column, w.message
+        );
+    }
+    if *total > 20 {
+        eprintln!("{name}: … and {} more warnings", total - 20);
+    }
+}
+
+/// The written file (or the scratch copy of standard output) re-read as the firmware reads it and replayed
+/// against the input.
+fn verify_written(
+    args: &Args,
+    map: &AxisMap,
+    options: &ConvertOptions,
+    name: &str,
+    copy: Option<&tempfile::NamedTempFile>,
+) -> miette::Result<convert::VerifyReport> {
+    let input = std::fs::File::open(&args.file)
+        .map_err(|e| miette::miette!("cannot reopen {} to verify: {e}", args.file.display()))?;
+    let commands = convert::read_commands(std::io::BufReader::new(input), name)
+        .map_err(|e| miette::Report::new(diag::gcode_error(&e)))?;
+    let written = match copy {
+        Some(file) => file.reopen(),
+        None => std::fs::File::open(&args.out),
+    }
+    .map_err(|e| miette::miette!("cannot read {}: {e}", args.out.display()))?;
+    convert::verify(map, options, &commands, std::io::BufReader::new(written))
+        .map_err(|e| miette::miette!("{}: {e}", args.out.display()))
+}
+
+/// What `--json` reports.
+struct JsonSummary<'a> {
+    name: &'a str,
+    stats: convert::ConvertStats,
+    warnings: u64,
+    verification: Option<&'a convert::VerifyReport>,
+    problem: Option<&'a str>,
+}
+
+fn print_json(args: &Args, options: &ConvertOptions, summary: &JsonSummary) {
+    let s = &summary.stats;
+    let value = serde_json::json!({
+        "input": summary.name,
+        "output": args.out.display().to_string(),
+        "moves": s.moves,
+        "segments": s.segments,
+        "centre_turns": s.flips,
+        "positioning_moves": s.positioning_moves,
+        "warnings": summary.warnings,
+        "firmware": options.firmware.name(),
+        "verification": summary.verification.map(verify_json),
+        "verification_failure": summary.problem,
+    });
+    let text = serde_json::to_string_pretty(&value).unwrap_or_default();
+    // With `-o -` standard output is the G-code: the report goes to standard error.
+    if output::is_stdio(&args.out) {
+        eprintln!("{text}");
+    } else {
+        crate::outln!("{text}");
+    }
 }
 
 /// Writes everything to both.

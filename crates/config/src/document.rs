@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{ConfigError, ConfigWarning};
-use crate::parse;
 use crate::span::Span;
 
 /// One `key: value` option, possibly spanning several lines.
@@ -175,6 +174,7 @@ pub(crate) fn section_key(name: &str) -> (String, String) {
 }
 
 /// A whole config: the main file, its includes and its `SAVE_CONFIG` block, merged like Klipper does.
+/// Made by the parser (`ConfigDocument::load`, `ConfigDocument::from_str` in `parse.rs`).
 #[derive(Debug, Clone)]
 pub struct ConfigDocument {
     pub(crate) path: PathBuf,
@@ -184,16 +184,6 @@ pub struct ConfigDocument {
 }
 
 impl ConfigDocument {
-    /// Reads `path` and everything it includes.
-    pub fn load(path: impl AsRef<Path>) -> Result<ConfigDocument, ConfigError> {
-        parse::parse_file(path.as_ref())
-    }
-
-    /// Parses `text` as if it were the file `path` (includes resolve relative to its folder).
-    pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<ConfigDocument, ConfigError> {
-        parse::parse_text(text, path.as_ref())
-    }
-
     /// The main file's path.
     pub fn path(&self) -> &Path {
         &self.path

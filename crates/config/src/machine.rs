@@ -377,44 +377,48 @@ fn stepper_section<'a>(
     document.require_section(name, &format!("required by {kinematics} kinematics"))
 }
 
-/// Reads a stepper section and records it in `steppers`.
-fn add_stepper(
+/// A stepper section a kinematics needs: its name, its units and how it homes.
+type StepperSlot<'a> = (&'a str, StepperUnits, StepperRole);
+
+/// Reads a kinematics' three stepper sections in order and records each in `steppers`.
+fn add_steppers(
     document: &ConfigDocument,
-    name: &str,
     kinematics: KinematicsKind,
-    units: StepperUnits,
-    role: StepperRole,
+    slots: [StepperSlot<'_>; 3],
     limits: &PrinterLimits,
     steppers: &mut Vec<StepperConfig>,
-) -> Result<StepperConfig, ConfigError> {
-    let section = stepper_section(document, name, kinematics.name())?;
-    let stepper = read_stepper(section, units, role, limits.max_step_rate)?;
-    steppers.push(stepper.clone());
-    Ok(stepper)
+) -> Result<[StepperConfig; 3], ConfigError> {
+    let mut add = |(name, units, role): StepperSlot<'_>| -> Result<StepperConfig, ConfigError> {
+        let section = stepper_section(document, name, kinematics.name())?;
+        let stepper = read_stepper(section, units, role, limits.max_step_rate)?;
+        steppers.push(stepper.clone());
+        Ok(stepper)
+    };
+    let [first, second, third] = slots;
+    Ok([add(first)?, add(second)?, add(third)?])
 }
+
+const MM_RAIL: (StepperUnits, StepperRole) = (StepperUnits::Millimetres, StepperRole::Rail);
 
 fn read_cartesian(
     document: &ConfigDocument,
     limits: &PrinterLimits,
     steppers: &mut Vec<StepperConfig>,
 ) -> Result<MachineParams, ConfigError> {
-    let mut rail = |name: &str| {
-        add_stepper(
-            document,
-            name,
-            KinematicsKind::Cartesian,
-            StepperUnits::Millimetres,
-            StepperRole::Rail,
-            limits,
-            steppers,
-        )
-        .map(|s| s.params())
-    };
-    let x = rail("stepper_x")?;
-    let y = rail("stepper_y")?;
-    let z = rail("stepper_z")?;
+    let (mm, rail) = MM_RAIL;
+    let [x, y, z] = add_steppers(
+        document,
+        KinematicsKind::Cartesian,
+        [
+            ("stepper_x", mm, rail),
+            ("stepper_y", mm, rail),
+            ("stepper_z", mm, rail),
+        ],
+        limits,
+        steppers,
+    )?;
     Ok(MachineParams::Cartesian(CartesianParams {
-        steppers: [x, y, z],
+        steppers: [x.params(), y.params(), z.params()],
     }))
 }
 
@@ -424,31 +428,15 @@ fn read_polar(
     limits: &PrinterLimits,
     steppers: &mut Vec<StepperConfig>,
 ) -> Result<MachineParams, ConfigError> {
-    let kin = KinematicsKind::Polar;
-    let bed = add_stepper(
+    let (mm, rail) = MM_RAIL;
+    let [bed, arm, z] = add_steppers(
         document,
-        "stepper_bed",
-        kin,
-        StepperUnits::Radians,
-        StepperRole::Plain,
-        limits,
-        steppers,
-    )?;
-    let arm = add_stepper(
-        document,
-        "stepper_arm",
-        kin,
-        StepperUnits::Millimetres,
-        StepperRole::Rail,
-        limits,
-        steppers,
-    )?;
-    let z = add_stepper(
-        document,
-        "stepper_z",
-        kin,
-        StepperUnits::Millimetres,
-        StepperRole::Rail,
+        KinematicsKind::Polar,
+        [
+            ("stepper_bed", StepperUnits::Radians, StepperRole::Plain),
+            ("stepper_arm", mm, rail),
+            ("stepper_z", mm, rail),
+        ],
         limits,
         steppers,
     )?;
@@ -468,32 +456,16 @@ fn read_scara(
     limits: &PrinterLimits,
     steppers: &mut Vec<StepperConfig>,
 ) -> Result<(MachineParams, Option<Vec<f64>>), ConfigError> {
-    let kin = KinematicsKind::Scara;
+    let (mm, rail) = MM_RAIL;
     let rad = StepperUnits::Radians;
-    let shoulder = add_stepper(
+    let [shoulder, elbow, z] = add_steppers(
         document,
-        "stepper_a",
-        kin,
-        rad,
-        StepperRole::Rail,
-        limits,
-        steppers,
-    )?;
-    let elbow = add_stepper(
-        document,
-        "stepper_b",
-        kin,
-        rad,
-        StepperRole::Rail,
-        limits,
-        steppers,
-    )?;
-    let z = add_stepper(
-        document,
-        "stepper_z",
-        kin,
-        StepperUnits::Millimetres,
-        StepperRole::Rail,
+        KinematicsKind::Scara,
+        [
+            ("stepper_a", rad, rail),
+            ("stepper_b", rad, rail),
+            ("stepper_z", mm, rail),
+        ],
         limits,
         steppers,
     )?;

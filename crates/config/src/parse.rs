@@ -18,14 +18,27 @@ use crate::span::Span;
 const AUTOSAVE_HEADER: &str = "#*# <---------------------- SAVE_CONFIG ---------------------->";
 const AUTOSAVE_PREFIX: &str = "#*#";
 
+// The document's constructors live with the parser, so that the document does not depend on its parser.
+impl ConfigDocument {
+    /// Reads `path` and everything it includes.
+    pub fn load(path: impl AsRef<Path>) -> Result<ConfigDocument, ConfigError> {
+        parse_file(path.as_ref())
+    }
+
+    /// Parses `text` as if it were the file `path` (includes resolve relative to its folder).
+    pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<ConfigDocument, ConfigError> {
+        parse_text(text, path.as_ref())
+    }
+}
+
 /// Reads a config file from disk with everything it includes.
-pub(crate) fn parse_file(path: &Path) -> Result<ConfigDocument, ConfigError> {
+fn parse_file(path: &Path) -> Result<ConfigDocument, ConfigError> {
     let text = read_text(path)?;
     parse_text(&text, path)
 }
 
 /// Parses `text` as the main file `path`.
-pub(crate) fn parse_text(text: &str, path: &Path) -> Result<ConfigDocument, ConfigError> {
+fn parse_text(text: &str, path: &Path) -> Result<ConfigDocument, ConfigError> {
     let mut builder = Builder {
         sections: Vec::new(),
         files: vec![path.to_path_buf()],

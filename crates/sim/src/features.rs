@@ -4,7 +4,7 @@
 //! four corners (squares, rectangles) get side lengths and corner angles from lines fitted to the middle
 //! part of each side (corner rounding left out), intended and actual alike.
 
-use crate::metrics::PathPoint;
+use crate::metrics::{PathPoint, segment_distance};
 use calibrate::circle::{self, Point};
 use nalgebra::{Matrix2, SymmetricEigen};
 use serde::Serialize;
@@ -184,7 +184,7 @@ fn douglas_peucker(p: &[Point], a: usize, b: usize, keep: &mut [bool]) {
     }
     let (mut worst, mut at) = (0.0, a);
     for i in a + 1..b {
-        let d = line_distance(p[i], p[a], p[b]);
+        let d = segment_distance(p[i], p[a], p[b]);
         if d > worst {
             (worst, at) = (d, i);
         }
@@ -194,18 +194,6 @@ fn douglas_peucker(p: &[Point], a: usize, b: usize, keep: &mut [bool]) {
         douglas_peucker(p, a, at, keep);
         douglas_peucker(p, at, b, keep);
     }
-}
-
-/// Distance from `p` to the segment `a`–`b` (to `a` when the segment is a point).
-fn line_distance(p: Point, a: Point, b: Point) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
 }
 
 /// A fitted line: a point on it and its unit direction (total least squares).

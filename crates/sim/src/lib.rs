@@ -4,6 +4,7 @@
 
 pub mod hall;
 
+pub mod correction;
 pub mod error;
 pub mod features;
 pub mod machine;
@@ -12,6 +13,7 @@ pub mod motor;
 pub mod replay;
 pub mod report;
 pub mod scenario;
+pub mod simulation;
 
 pub use error::SimulationError;
 pub use machine::{Machine, motor_model_from_config};

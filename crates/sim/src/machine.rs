@@ -133,42 +133,21 @@ pub fn motor_model_from_config(cfg: &MachineConfig) -> Result<Vec<MotorError>, S
 mod tests {
     use super::*;
 
-    const POLAR: &str = "
-[stepper_bed]
-step_pin: PF0
-dir_pin: PF1
-microsteps: 16
-gear_ratio: 80:16
-[stepper_arm]
-step_pin: PF6
-dir_pin: PF7
-microsteps: 16
-rotation_distance: 40
-endstop_pin: ^PJ1
-position_endstop: 150
-position_max: 150
-[stepper_z]
-step_pin: PL3
-dir_pin: PL1
-microsteps: 16
-rotation_distance: 8
-endstop_pin: ^PD3
-position_endstop: 0.5
-position_max: 200
-[printer]
-kinematics: polar
-max_velocity: 300
-max_accel: 3000
-arm_lateral_offset: 1.0
-[sim]
-microstep_error: 0.01
-backlash_stepper_bed: 0.05
-step_scale_error_stepper_arm: 0.002
-";
+    use crate::scenario::{POLAR_EXAMPLE, with_keys};
+
+    /// The bundled polar example, built 1 mm sideways, with a motor model.
+    fn polar() -> String {
+        let text = with_keys(POLAR_EXAMPLE, "printer", "arm_lateral_offset: 1.0");
+        with_keys(
+            &text,
+            "sim",
+            "microstep_error: 0.01\nbacklash_stepper_bed: 0.05\nstep_scale_error_stepper_arm: 0.002",
+        )
+    }
 
     #[test]
     fn sim_section_sets_the_motor_model() {
-        let cfg = MachineConfig::from_str(POLAR, "actual.cfg").expect("config");
+        let cfg = MachineConfig::from_str(&polar(), "actual.cfg").expect("config");
         let m = Machine::from_config(&cfg).expect("machine");
         let e = m.motor_errors();
         assert_eq!(e.len(), 3);
@@ -181,7 +160,7 @@ step_scale_error_stepper_arm: 0.002
 
     #[test]
     fn bad_sim_value_points_at_the_file() {
-        let text = POLAR.replace("microstep_error: 0.01", "microstep_error: lots");
+        let text = polar().replace("microstep_error: 0.01", "microstep_error: lots");
         let cfg = MachineConfig::from_str(&text, "actual.cfg").expect("config");
         let err = Machine::from_config(&cfg).expect_err("must refuse");
         assert!(err.to_string().contains("actual.cfg"), "{err}");
@@ -189,7 +168,7 @@ step_scale_error_stepper_arm: 0.002
 
     #[test]
     fn misspelt_sim_key_is_refused_at_its_line() {
-        let text = POLAR.replace("backlash_stepper_bed", "backlash_stepper_bedd");
+        let text = polar().replace("backlash_stepper_bed", "backlash_stepper_bedd");
         let cfg = MachineConfig::from_str(&text, "actual.cfg").expect("config");
         let err = Machine::from_config(&cfg).expect_err("must refuse");
         let msg = err.to_string();
@@ -201,7 +180,7 @@ step_scale_error_stepper_arm: 0.002
 
     #[test]
     fn motor_count_must_match() {
-        let cfg = MachineConfig::from_str(POLAR, "actual.cfg").expect("config");
+        let cfg = MachineConfig::from_str(&polar(), "actual.cfg").expect("config");
         let err = Machine::new(&cfg.params, vec![MotorError::default()]).expect_err("count");
         assert!(err.to_string().contains("1 motor models for 3 motors"));
     }

@@ -3,6 +3,19 @@
 
 use serde::Serialize;
 
+/// XY distance from `p` to the segment `a`–`b` (to `a` when the segment is a point), for points of two or
+/// three coordinates: the path deviation of a replay and the corner search of the feature finder.
+pub(crate) fn segment_distance<const N: usize>(p: [f64; N], a: [f64; N], b: [f64; N]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+}
+
 /// One simulated instant: where the nozzle should be and where it is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
@@ -360,6 +373,16 @@ impl Analysis {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn segment_distance_closed_form() {
+        let a = [0.0, 0.0, 0.0];
+        let b = [10.0, 0.0, 0.0];
+        assert_eq!(segment_distance([5.0, 3.0, 0.0], a, b), 3.0);
+        assert_eq!(segment_distance([13.0, 4.0, 0.0], a, b), 5.0);
+        assert_eq!(segment_distance([-3.0, -4.0, 0.0], a, a), 5.0);
+        assert_eq!(segment_distance([5.0, 3.0], [0.0, 0.0], [10.0, 0.0]), 3.0);
+    }
 
     fn sample(x: f64, dev: f64, z: f64) -> Sample {
         Sample {

@@ -14,7 +14,7 @@
 
 use crate::error::SimulationError;
 use crate::machine::Machine;
-use crate::metrics::{Analysis, DeviationStats, LayerStats, PathPoint, Sample};
+use crate::metrics::{Analysis, DeviationStats, LayerStats, PathPoint, Sample, segment_distance};
 use crate::motor::MotorTrack;
 use kinematics::Kinematics;
 use motion::machine::MachineSetup;
@@ -526,30 +526,4 @@ impl MoveSink for Recorder<'_> {
 
 fn piece_distance(p: Vec3, piece: &Piece) -> f64 {
     segment_distance(p, piece.start_pos, piece.position(piece.duration))
-}
-
-/// XY distance from `p` to the segment `a`–`b`.
-fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn segment_distance_closed_form() {
-        let a = [0.0, 0.0, 0.0];
-        let b = [10.0, 0.0, 0.0];
-        assert_eq!(segment_distance([5.0, 3.0, 0.0], a, b), 3.0);
-        assert_eq!(segment_distance([13.0, 4.0, 0.0], a, b), 5.0);
-        assert_eq!(segment_distance([-3.0, -4.0, 0.0], a, a), 5.0);
-    }
 }

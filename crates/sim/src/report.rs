@@ -1,10 +1,11 @@
 //! The simulation report: numbers (text + JSON) and pictures (overlay of intended vs actual path coloured by
 //! deviation, heat map of deviation over the bed), for one run or a before/after correction pair.
 
+use crate::correction::CorrectionSummary;
 use crate::error::SimulationError;
 use crate::features::{CircleFeature, QuadFeature};
 use crate::metrics::{PathPoint, StatsSummary};
-use crate::scenario::{CorrectionSummary, Simulation};
+use crate::simulation::Simulation;
 use plot::{ColourScale, Figure, Grid, Layer, Rgb};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -145,21 +146,29 @@ impl Report {
 fn run_text(s: &mut String, title: &str, r: &RunReport) {
     run_stats_text(s, title, r);
     circles_text(s, &r.circles);
-    if r.circle_count > r.circles.len() {
-        let _ = writeln!(
-            s,
-            "               ({} circles in all; the {} worst are listed)",
-            r.circle_count,
-            r.circles.len()
-        );
-    }
+    more_than_listed(
+        s,
+        "               ",
+        r.circle_count,
+        r.circles.len(),
+        "circles",
+    );
     quads_text(s, &r.squares);
-    if r.square_count > r.squares.len() {
+    more_than_listed(
+        s,
+        "                  ",
+        r.square_count,
+        r.squares.len(),
+        "four-sided loops",
+    );
+}
+
+/// Under a table cut to its worst rows: how many there were in all.
+fn more_than_listed(s: &mut String, indent: &str, count: usize, listed: usize, what: &str) {
+    if count > listed {
         let _ = writeln!(
             s,
-            "                  ({} four-sided loops in all; the {} worst are listed)",
-            r.square_count,
-            r.squares.len()
+            "{indent}({count} {what} in all; the {listed} worst are listed)"
         );
     }
 }

@@ -1,254 +1,21 @@
 //! The closed loop on the virtual printer: simulate → calibrate → correct → simulate again, plus the
-//! bundled demo machines (in-memory printer.cfg text) and a generator of circle test prints.
-//!
-//! Calibrations run against the *true* machine only through what a real one would offer:
-//! - polar: the Hall-sensor centre scan (`calibrate::scan` over [`crate::hall::HallScanner`] built with the
-//!   true arm offsets, magnet placement errors, sensor noise); the measured `arm_zero_offset` and
-//!   `arm_lateral_offset` go into the believed config.
-//! - SCARA: a printed calibration pattern measured on the bed: the nozzle XY at commanded motor angles on the
-//!   true machine plus 0.02 mm (1σ) measurement noise, fitted by `calibrate::scara::identify`; link lengths,
-//!   offsets, joint zeros and the coupling go into the believed config.
+//! demo machines (the bundled examples, set up as the scenarios need them) and a generator of circle test
+//! prints. How the printer is calibrated: the
+//! `correction` module; one simulation: the `simulation` module (both re-exported here).
 
 use crate::error::SimulationError;
-use crate::features::{CircleFeature, QuadFeature, find_circles, find_quads};
-use crate::hall::{HallBedConfig, HallScanner};
 use crate::machine::Machine;
-use crate::replay::{Replay, ReplayOptions, replay};
-use calibrate::scan::{ScanParams, scan_centre};
-use calibrate::scara::{Measurement, ScaraGeometry, identify};
+use crate::replay::ReplayOptions;
+use crate::report::{Report, RunReport, write_report};
 use config::MachineConfig;
-use kinematics::{MachineParams, PolarParams, ScaraFrame, ScaraParams};
-use motion::machine::MachineSetup;
-use rand::SeedableRng;
-use rand::rngs::StdRng;
-use rand_distr::{Distribution, Normal};
-use serde::Serialize;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 use std::fmt::Write as _;
 use std::io::BufRead;
 
-/// One simulation: the replay and the features measured on it.
-#[derive(Debug, Clone)]
-pub struct Simulation {
-    pub replay: Replay,
-    pub circles: Vec<CircleFeature>,
-    pub quads: Vec<QuadFeature>,
-}
-
-/// Plan `gcode` on the believed config, run it on `actual`, measure features.
-pub fn simulate(
-    believed: &MachineConfig,
-    actual: &Machine,
-    gcode: impl BufRead,
-    source_name: &str,
-    options: &ReplayOptions,
-) -> Result<Simulation, SimulationError> {
-    let setup = MachineSetup::from_config(believed)?;
-    let replay = replay(&setup, actual, gcode, source_name, options)?;
-    let circles = find_circles(&replay.path);
-    let quads = find_quads(&replay.path);
-    Ok(Simulation {
-        replay,
-        circles,
-        quads,
-    })
-}
-
-/// One corrected parameter: believed before, measured, true value.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CorrectedValue {
-    pub name: String,
-    pub believed: f64,
-    pub measured: f64,
-    pub actual: f64,
-}
-
-/// What the calibration measured and applied.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CorrectionSummary {
-    pub method: String,
-    pub values: Vec<CorrectedValue>,
-    /// Fit quality: RMS residual (mm).
-    pub rms: f64,
-}
-
-/// Calibrate on the true machine and return the believed config with the measured values applied.
-pub fn calibrate_and_correct(
-    believed: &MachineConfig,
-    actual: &Machine,
-    seed: u64,
-) -> Result<(MachineConfig, CorrectionSummary), SimulationError> {
-    let (params, summary) = match (&believed.params, actual.params()) {
-        (MachineParams::Polar(b), MachineParams::Polar(a)) => {
-            let (p, s) = correct_polar(b, a, actual, seed)?;
-            (MachineParams::Polar(p), s)
-        }
-        (MachineParams::Scara(b), MachineParams::Scara(a)) => {
-            let (p, s) = correct_scara(b, a, actual, seed)?;
-            (MachineParams::Scara(p), s)
-        }
-        _ => {
-            return Err(SimulationError::Calibration(
-                "automatic calibration exists for polar and SCARA machines of the same kind".into(),
-            ));
-        }
-    };
-    let mut corrected = believed.clone();
-    corrected.params = params;
-    Ok((corrected, summary))
-}
-
-fn correct_polar(
-    believed: &PolarParams,
-    truth: &PolarParams,
-    actual: &Machine,
-    seed: u64,
-) -> Result<(PolarParams, CorrectionSummary), SimulationError> {
-    let motors = actual.motor_errors();
-    let microstep_error = motors
-        .iter()
-        .take(2)
-        .map(|m| m.microstep_error)
-        .fold(0.0, f64::max);
-    let hw_cfg = HallBedConfig {
-        arm_zero_offset: truth.arm_zero_offset,
-        arm_lateral_offset: truth.arm_lateral_offset,
-        arm_steps_per_mm: 1.0 / truth.arm.step_distance,
-        bed_steps_per_rev: TAU / truth.bed.step_distance,
-        microsteps: motors.get(1).map_or(16, |m| m.microsteps),
-        microstep_error,
-        seed,
-        ..HallBedConfig::default()
-    };
-    let mut hw =
-        HallScanner::new(hw_cfg).map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let result = scan_centre(&mut hw, &ScanParams::default())
-        .map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let corrected = PolarParams {
-        arm_zero_offset: result.arm_zero_offset,
-        arm_lateral_offset: result.arm_lateral_offset,
-        ..believed.clone()
-    };
-    let rms = result.ring.as_ref().map_or(0.0, |r| r.rms);
-    let summary = CorrectionSummary {
-        method: format!(
-            "Hall-sensor centre scan: {} of {} magnet pairs, {} sensor reads, {:.0} s of machine time",
-            result.pairs_used, result.magnet_count, result.sensor_reads, result.scan_time
-        ),
-        values: vec![
-            value(
-                "arm_zero_offset",
-                believed.arm_zero_offset,
-                result.arm_zero_offset,
-                truth.arm_zero_offset,
-            ),
-            value(
-                "arm_lateral_offset",
-                believed.arm_lateral_offset,
-                result.arm_lateral_offset,
-                truth.arm_lateral_offset,
-            ),
-        ],
-        rms,
-    };
-    Ok((corrected, summary))
-}
-
-fn value(name: &str, believed: f64, measured: f64, actual: f64) -> CorrectedValue {
-    CorrectedValue {
-        name: name.to_string(),
-        believed,
-        measured,
-        actual,
-    }
-}
-
-/// Motor angles of an 11×11 grid of joint poses (q1 90° ± 60°, q2 40°…130°) on the believed machine.
-fn calibration_poses(g: &ScaraGeometry) -> Vec<(f64, f64)> {
-    let mut poses = Vec::new();
-    for i in 0..11 {
-        let q1 = (-60.0 + 12.0 * f64::from(i)).to_radians() + 0.5 * PI;
-        for k in 0..11 {
-            let q2 = (40.0 + 9.0 * f64::from(k)).to_radians();
-            poses.push((
-                q1 + g.shoulder_zero,
-                q2 + g.elbow_coupling * q1 + g.elbow_zero,
-            ));
-        }
-    }
-    poses
-}
-
-/// Standard deviation of the simulated pattern measurement (mm).
-pub const PATTERN_NOISE: f64 = 0.02;
-
-fn correct_scara(
-    believed: &ScaraParams,
-    truth: &ScaraParams,
-    actual: &Machine,
-    seed: u64,
-) -> Result<(ScaraParams, CorrectionSummary), SimulationError> {
-    if believed.frame != ScaraFrame::Standard || truth.frame != ScaraFrame::Standard {
-        return Err(SimulationError::Calibration(
-            "SCARA identification runs in the standard frame; X-SCARA frame machines are not supported".into(),
-        ));
-    }
-    let start = ScaraGeometry::from(believed);
-    let mut rng = StdRng::seed_from_u64(seed);
-    let noise =
-        Normal::new(0.0, PATTERN_NOISE).map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let scale: Vec<f64> = actual
-        .motor_errors()
-        .iter()
-        .map(|m| 1.0 + m.scale_error)
-        .collect();
-    let mut data = Vec::new();
-    for (line, (a, b)) in calibration_poses(&start).into_iter().enumerate() {
-        let motors = [a * scale[0], b * scale[1], 0.0];
-        let p = actual
-            .kinematics()
-            .forward(&motors)
-            .map_err(|e| SimulationError::Calibration(e.to_string()))?;
-        data.push(Measurement {
-            motor_a: a,
-            motor_b: b,
-            x: p[0] + noise.sample(&mut rng),
-            y: p[1] + noise.sample(&mut rng),
-            line: line + 1,
-        });
-    }
-    let fit = identify(&data, &start).map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let g = fit.geometry;
-    let corrected = ScaraParams {
-        link1_length: g.link1_length,
-        link2_length: g.link2_length,
-        offset_x: g.offset_x,
-        offset_y: g.offset_y,
-        shoulder_zero: g.shoulder_zero,
-        elbow_zero: g.elbow_zero,
-        elbow_coupling: g.elbow_coupling,
-        ecr: None,
-        ..believed.clone()
-    };
-    let t = ScaraGeometry::from(truth);
-    let names = calibrate::scara::PARAM_NAMES;
-    let values = names
-        .iter()
-        .zip(start.to_array())
-        .zip(g.to_array())
-        .zip(t.to_array())
-        .map(|(((n, b), m), a)| value(n, b, m, a))
-        .collect();
-    let summary = CorrectionSummary {
-        method: format!(
-            "SCARA identification from {} measured pattern crosses ({PATTERN_NOISE} mm noise)",
-            data.len()
-        ),
-        values,
-        rms: fit.rms,
-    };
-    Ok((corrected, summary))
-}
+pub use crate::correction::{
+    CorrectedValue, CorrectionSummary, PATTERN_NOISE, calibrate_and_correct,
+};
+pub use crate::simulation::{Simulation, simulate};
 
 /// A test print: `layers` layers of circles (centre, radius; 128 segments each) and axis-aligned squares
 /// (centre, side), starting with `SET_KINEMATIC_POSITION` at `start` when given.
@@ -305,104 +72,41 @@ pub fn test_print_gcode(
     s
 }
 
-/// Klipper's example polar printer (arm endstop at 300 mm, 16000 bed steps/rev, 80 arm steps/mm).
-pub const POLAR_CONFIG: &str = "
-[stepper_bed]
-step_pin: PF0
-dir_pin: PF1
-microsteps: 16
-gear_ratio: 80:16
+/// The bundled example polar printer (`examples/machines/polar.cfg`, as `jointspace demo` runs it).
+pub const POLAR_EXAMPLE: &str = include_str!("../../../examples/machines/polar.cfg");
+/// The bundled example SCARA printer (`examples/machines/scara.cfg`): FEKT-SCARA's 100/100 mm arms, ECR 3.
+pub const SCARA_EXAMPLE: &str = include_str!("../../../examples/machines/scara.cfg");
 
-[stepper_arm]
-step_pin: PF6
-dir_pin: PF7
-microsteps: 16
-rotation_distance: 40
-endstop_pin: ^PJ1
-position_endstop: 300
-position_max: 300
+/// `text` with `keys` (`key: value` lines) set in `[section]`: a second `[section]` at the end, which the
+/// reader merges into the first as Klipper does, its keys winning.
+pub fn with_keys(text: &str, section: &str, keys: &str) -> String {
+    format!("{text}\n[{section}]\n{keys}\n")
+}
 
-[stepper_z]
-step_pin: PL3
-dir_pin: PL1
-microsteps: 16
-rotation_distance: 8
-endstop_pin: ^PD3
-position_endstop: 0.5
-position_max: 200
+/// The polar scenarios' machine: the bundled example set up as Klipper's own polar example, on which the
+/// scenarios' numbers were taken: the arm homes at 300 mm (a print starts with a travel from there) and Z
+/// accelerates at 30 mm/s². The corpus prints the tests replay need more room: 10 mm² of extrusion
+/// cross-section, Z up to 200 mm (the spiral vase is 170 mm tall).
+pub fn polar_config() -> String {
+    let text = with_keys(
+        POLAR_EXAMPLE,
+        "stepper_arm",
+        "position_endstop: 300\nposition_max: 300",
+    );
+    let text = with_keys(&text, "stepper_z", "position_max: 200");
+    let text = with_keys(&text, "extruder", "max_extrude_cross_section: 10");
+    with_keys(&text, "printer", "max_z_accel: 30")
+}
 
-[extruder]
-step_pin: PA4
-dir_pin: PA6
-microsteps: 16
-rotation_distance: 33.500
-nozzle_diameter: 0.400
-filament_diameter: 1.750
-max_extrude_cross_section: 10
-
-[printer]
-kinematics: polar
-max_velocity: 300
-max_accel: 3000
-max_z_velocity: 25
-max_z_accel: 30
-";
-
-/// The FEKT-SCARA printer (100/100 mm arms, ECR 3, 60:20 joint gearing).
-pub const SCARA_CONFIG: &str = "
-[stepper_a]
-step_pin: PF0
-dir_pin: !PF1
-microsteps: 16
-gear_ratio: 60:20
-endstop_pin: ^PE5
-position_endstop: 0
-position_min: -200
-position_max: 200
-homing_positive_dir: False
-
-[stepper_b]
-step_pin: PF6
-dir_pin: PF7
-microsteps: 16
-gear_ratio: 60:20
-endstop_pin: ^PJ1
-position_endstop: 0
-position_min: -200
-position_max: 200
-homing_positive_dir: False
-
-[stepper_z]
-step_pin: PL3
-dir_pin: PL1
-microsteps: 16
-rotation_distance: 8
-endstop_pin: ^PD3
-position_endstop: 0.5
-position_max: 200
-
-[extruder]
-step_pin: PA4
-dir_pin: PA6
-microsteps: 16
-rotation_distance: 33.500
-nozzle_diameter: 0.400
-filament_diameter: 1.750
-max_extrude_cross_section: 10
-
-[printer]
-kinematics: scara
-link1_length: 100.0
-link2_length: 100.0
-offset_x: 0
-offset_y: 0
-ecr: 3.0
-base_protection_radius: 60.0
-max_velocity: 300
-max_accel: 3000
-max_z_velocity: 50
-max_z_accel: 30
-";
+/// The SCARA scenarios' machine: the bundled example set up as the FEKT-SCARA printer the scenarios' numbers
+/// were taken on: both joints home at 0° from above (where the replay starts, before a print's
+/// `SET_KINEMATIC_POSITION`), and it accelerates at 3000 mm/s², Z at 30 mm/s².
+pub fn scara_config() -> String {
+    let homed_at_zero = "position_endstop: 0\nhoming_positive_dir: False";
+    let text = with_keys(SCARA_EXAMPLE, "stepper_a", homed_at_zero);
+    let text = with_keys(&text, "stepper_b", homed_at_zero);
+    with_keys(&text, "printer", "max_accel: 3000\nmax_z_accel: 30")
+}
 
 /// Circles and squares of the polar demo print: one centred, the others off centre.
 pub const POLAR_CIRCLES: [([f64; 2], f64); 2] = [([0.0, 0.0], 75.0), ([30.0, 20.0], 15.0)];
@@ -417,16 +121,14 @@ pub const SCARA_CIRCLES: [([f64; 2], f64); 3] = [
     ([55.0, 150.0], 10.0),
 ];
 
-/// Believed and actual config of a scenario, from config text plus `[printer]` overrides for the actual one.
+/// Believed and actual config of a scenario, from config text plus `[printer]` keys that set the actual one
+/// apart (its assembly errors).
 pub fn scenario_configs(
     text: &str,
     actual_printer_keys: &str,
 ) -> Result<(MachineConfig, MachineConfig), SimulationError> {
     let believed = MachineConfig::from_str(text, "believed.cfg")?;
-    let actual_text = text.replace(
-        "[printer]\n",
-        &format!("[printer]\n{actual_printer_keys}\n"),
-    );
+    let actual_text = with_keys(text, "printer", actual_printer_keys);
     let actual = MachineConfig::from_str(&actual_text, "actual.cfg")?;
     Ok((believed, actual))
 }
@@ -462,7 +164,7 @@ pub fn closed_loop<R: BufRead>(
 
 /// The polar demo: 1 mm sideways arm offset, a generated centred circle print (or `gcode` if given).
 pub fn polar_lateral_offset_loop(gcode: Option<&[u8]>) -> Result<ClosedLoop, SimulationError> {
-    let (believed, actual_cfg) = scenario_configs(POLAR_CONFIG, "arm_lateral_offset: 1.0")?;
+    let (believed, actual_cfg) = scenario_configs(&polar_config(), "arm_lateral_offset: 1.0")?;
     let actual = Machine::from_config(&actual_cfg)?;
     let generated;
     let text: &[u8] = match gcode {
@@ -484,11 +186,8 @@ pub fn polar_lateral_offset_loop(gcode: Option<&[u8]>) -> Result<ClosedLoop, Sim
 
 /// The SCARA demo: built with ECR 3.2 and a 0.5 mm longer proximal arm, configured as ECR 3 / 100 mm.
 pub fn scara_coupling_loop() -> Result<ClosedLoop, SimulationError> {
-    let believed = MachineConfig::from_str(SCARA_CONFIG, "believed.cfg")?;
-    let actual_text = SCARA_CONFIG
-        .replace("link1_length: 100.0", "link1_length: 100.5")
-        .replace("ecr: 3.0", "ecr: 3.2");
-    let actual_cfg = MachineConfig::from_str(&actual_text, "actual.cfg")?;
+    let (believed, actual_cfg) =
+        scenario_configs(&scara_config(), "link1_length: 100.5\necr: 3.2")?;
     let actual = Machine::from_config(&actual_cfg)?;
     let text = test_print_gcode(&SCARA_CIRCLES, &SCARA_SQUARES, 2, Some([0.0, 130.0, 0.5]));
     closed_loop(
@@ -508,23 +207,21 @@ pub fn write_closed_loop_report(
     believed_name: &str,
     actual_name: &str,
     gcode_name: &str,
-) -> Result<crate::report::Report, SimulationError> {
-    let report = crate::report::Report {
+) -> Result<Report, SimulationError> {
+    let report = Report {
         believed_config: believed_name.to_string(),
         actual_config: actual_name.to_string(),
         gcode: gcode_name.to_string(),
-        before: crate::report::RunReport::new(&run.before),
+        before: RunReport::new(&run.before),
         correction: Some(run.correction.clone()),
-        after: Some(crate::report::RunReport::new(&run.after)),
+        after: Some(RunReport::new(&run.after)),
     };
-    crate::report::write_report(out_dir, &report, &run.before, Some(&run.after))?;
+    write_report(out_dir, &report, &run.before, Some(&run.after))?;
     Ok(report)
 }
 
 /// The polar demo written to `out_dir` (1 mm sideways arm offset, generated circles): its report.
-pub fn polar_lateral_offset_demo(
-    out_dir: &std::path::Path,
-) -> Result<crate::report::Report, SimulationError> {
+pub fn polar_lateral_offset_demo(out_dir: &std::path::Path) -> Result<Report, SimulationError> {
     let run = polar_lateral_offset_loop(None)?;
     write_closed_loop_report(
         out_dir,
@@ -536,9 +233,7 @@ pub fn polar_lateral_offset_demo(
 }
 
 /// The SCARA demo written to `out_dir` (ECR 3.2 and +0.5 mm proximal arm built, ECR 3 configured).
-pub fn scara_coupling_demo(
-    out_dir: &std::path::Path,
-) -> Result<crate::report::Report, SimulationError> {
+pub fn scara_coupling_demo(out_dir: &std::path::Path) -> Result<Report, SimulationError> {
     let run = scara_coupling_loop()?;
     write_closed_loop_report(
         out_dir,

@@ -2,7 +2,7 @@
 
 use crate::common::{corpus_circle, polar_pair, polar_print};
 use sim::scenario::{
-    SCARA_CIRCLES, SCARA_CONFIG, SCARA_SQUARES, closed_loop, scara_coupling_loop, simulate,
+    SCARA_CIRCLES, SCARA_SQUARES, closed_loop, scara_config, scara_coupling_loop, simulate,
     test_print_gcode,
 };
 use sim::{Machine, ReplayOptions};
@@ -166,7 +166,7 @@ fn scara_wrong_ecr_and_arm_length_give_ovals_and_identification_fixes_them() {
 }
 
 fn scara_ideal_baseline() -> sim::metrics::DeviationStats {
-    let believed = config::MachineConfig::from_str(SCARA_CONFIG, "scara.cfg").expect("config");
+    let believed = config::MachineConfig::from_str(&scara_config(), "scara.cfg").expect("config");
     let actual = Machine::new(&believed.params, vec![]).expect("machine");
     let gcode = test_print_gcode(&SCARA_CIRCLES, &SCARA_SQUARES, 2, Some([0.0, 130.0, 0.5]));
     let s = simulate(
@@ -190,7 +190,7 @@ fn without_assembly_errors_the_path_matches_within_step_resolution() {
     let actual = Machine::new(&believed.params, vec![]).expect("machine");
     let gcode = corpus_circle().unwrap_or_else(|| polar_print().into_bytes());
     let polar = simulate(&believed, &actual, &gcode[..], "circle", &options).expect("polar");
-    let scara_cfg = config::MachineConfig::from_str(SCARA_CONFIG, "scara.cfg").expect("config");
+    let scara_cfg = config::MachineConfig::from_str(&scara_config(), "scara.cfg").expect("config");
     let scara_actual = Machine::new(&scara_cfg.params, vec![]).expect("machine");
     let scara_gcode = test_print_gcode(&SCARA_CIRCLES, &SCARA_SQUARES, 1, Some([0.0, 130.0, 0.5]));
     let scara = simulate(
@@ -287,9 +287,10 @@ fn polar_zero_and_lateral_offsets_together_are_corrected() {
 
 #[test]
 fn scara_joint_zero_and_shoulder_position_errors_are_identified() {
-    let believed = config::MachineConfig::from_str(SCARA_CONFIG, "scara.cfg").expect("config");
-    let actual_text = SCARA_CONFIG.replace(
-        "offset_x: 0\noffset_y: 0",
+    let believed = config::MachineConfig::from_str(&scara_config(), "scara.cfg").expect("config");
+    let actual_text = sim::scenario::with_keys(
+        &scara_config(),
+        "printer",
         "offset_x: 0.4\noffset_y: -0.3\nshoulder_zero: 0.3\nelbow_zero: -0.2",
     );
     let actual_cfg = config::MachineConfig::from_str(&actual_text, "actual.cfg").expect("actual");

@@ -24,10 +24,10 @@ pub fn polar_pair(
     printer_keys: &str,
     sim_section: &str,
 ) -> (config::MachineConfig, config::MachineConfig) {
-    let (believed, _) =
-        sim::scenario::scenario_configs(sim::scenario::POLAR_CONFIG, "").expect("configs");
-    let text = format!("{}\n[sim]\n{sim_section}\n", sim::scenario::POLAR_CONFIG)
-        .replace("[printer]\n", &format!("[printer]\n{printer_keys}\n"));
+    let polar = sim::scenario::polar_config();
+    let (believed, _) = sim::scenario::scenario_configs(&polar, "").expect("configs");
+    let text = sim::scenario::with_keys(&polar, "sim", sim_section);
+    let text = sim::scenario::with_keys(&text, "printer", printer_keys);
     let actual = config::MachineConfig::from_str(&text, "actual.cfg").expect("actual config");
     (believed, actual)
 }

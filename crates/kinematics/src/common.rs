@@ -1,22 +1,7 @@
 //! Small helpers shared by the machines: angle unwrapping, parameter validation, limit checks and
 //! closed-form segment geometry.
 
-use std::f64::consts::{PI, TAU};
-
 use crate::{Motor, MotorUnit, ParamError, ReachError, SegmentError, StepperParams, Vec3};
-
-/// `angle` shifted by whole turns to lie within ±π of `previous`.
-///
-/// For `|angle − previous| ≤ π` the angle is returned untouched; one turn off gives exactly `angle ± 2π`,
-/// the same arithmetic Klipper's polar bed uses, so step times stay bit-identical.
-pub fn unwrap_near(angle: f64, previous: f64) -> f64 {
-    let diff = angle - previous;
-    if diff.abs() <= PI || !previous.is_finite() {
-        return angle;
-    }
-    let turns = ((previous - angle) / TAU).round();
-    angle + turns * TAU
-}
 
 pub(crate) fn ensure_finite_point(p: Vec3) -> Result<(), ReachError> {
     if p.iter().all(|v| v.is_finite()) {
@@ -210,14 +195,6 @@ pub(crate) fn first_failure(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn unwrap_keeps_close_angles_and_adds_whole_turns() {
-        assert_eq!(unwrap_near(3.0, 2.0), 3.0);
-        assert_eq!(unwrap_near(-3.0, 3.0), -3.0 + TAU);
-        let far = unwrap_near(0.1, 10.0 * TAU + 0.05);
-        assert!((far - (10.0 * TAU + 0.1)).abs() < 1e-12);
-    }
 
     #[test]
     fn closest_approach_of_a_line_past_the_origin() {

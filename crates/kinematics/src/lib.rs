@@ -4,6 +4,7 @@
 //! Nothing here reads files or G-code: machines are built from the plain parameter structs in [`params`],
 //! which the `config` crate fills from `printer.cfg`.
 
+mod angle;
 pub mod cartesian;
 mod common;
 pub mod params;
@@ -11,7 +12,7 @@ pub mod polar;
 pub mod scara;
 pub mod workspace;
 
-pub use common::unwrap_near;
+pub use angle::unwrap_near;
 pub use params::*;
 
 /// A Cartesian toolhead position `[x, y, z]` in mm.

@@ -19,9 +19,10 @@
 //! `AtCentre`, while [`Kinematics::inverse_near`] keeps the previous bed angle there (the arm is at 0, so
 //! any bed angle puts the nozzle on the centre; keeping the old one avoids a jump).
 
+use crate::angle::unwrap_near;
 use crate::common::{
     check_axis_limits, check_stepper_limits, closest_approach, ensure_finite, ensure_finite_point,
-    first_failure, lerp, motor_from, unwrap_near,
+    first_failure, lerp, motor_from,
 };
 use crate::{
     Kinematics, Motor, MotorMap, MotorUnit, PATH_TOLERANCE, ParamError, PolarParams,

@@ -15,10 +15,11 @@
 
 use std::f64::consts::{PI, TAU};
 
+use crate::angle::unwrap_near;
 use crate::common::{
     SEGMENT_T_TOLERANCE, check_axis_limits, check_range, check_stepper_limits, closest_approach,
     ensure_finite, ensure_finite_point, ensure_non_negative, ensure_positive, ensure_range,
-    first_failure, lerp, motor_from, unwrap_near,
+    first_failure, lerp, motor_from,
 };
 use crate::{
     ElbowBranch, Kinematics, Motor, MotorMap, MotorUnit, ParamError, ReachError, ScaraFrame,

@@ -1,6 +1,6 @@
 //! The drawing surface both outputs implement: pixel coordinates, y downwards.
 
-use crate::Rgb;
+use crate::colour::Rgb;
 
 /// Horizontal text anchor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
-use crate::PlotError;
 use crate::canvas::{Anchor, Canvas};
 use crate::colour::{ColourScale, Rgb};
+use crate::error::PlotError;
 
 /// A regular grid of values; `values[iy * nx + ix]` covers
 /// `[x_min + ix·cell, x_min + (ix+1)·cell] × [y_min + iy·cell, …]`. `None` cells are drawn grey.

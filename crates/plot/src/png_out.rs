@@ -8,7 +8,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::canvas::{Anchor, Canvas};
-use crate::{PlotError, Rgb};
+use crate::colour::Rgb;
+use crate::error::PlotError;
 
 /// Family name under which the bundled font is registered with plotters.
 const FONT_FAMILY: &str = "jointspace-sans";

@@ -2,8 +2,8 @@
 
 use std::fmt::Write;
 
-use crate::Rgb;
 use crate::canvas::{Anchor, Canvas};
+use crate::colour::Rgb;
 
 #[derive(Debug)]
 pub(crate) struct SvgCanvas {

@@ -521,7 +521,7 @@ pub fn render(r: &RunSummary) -> String {
 /// The moves CSV: written to a temporary file and renamed into place when complete (never over an input),
 /// or to standard output for `-`.
 struct CsvFile {
-    sink: motion::csv::CsvSink<std::io::BufWriter<Box<dyn std::io::Write + Send>>>,
+    sink: trapq::csv::CsvSink<std::io::BufWriter<Box<dyn std::io::Write + Send>>>,
     /// The temporary file and where it goes; `None` for standard output.
     temp: Option<(tempfile::NamedTempFile, PathBuf)>,
 }
@@ -539,7 +539,7 @@ impl CsvFile {
         if crate::output::is_stdio(path) {
             let out: Box<dyn std::io::Write + Send> = Box::new(std::io::stdout());
             return Ok(CsvFile {
-                sink: motion::csv::CsvSink::new(std::io::BufWriter::new(out)),
+                sink: trapq::csv::CsvSink::new(std::io::BufWriter::new(out)),
                 temp: None,
             });
         }
@@ -547,7 +547,7 @@ impl CsvFile {
         let file = temp.reopen().map_err(|e| fail(&e))?;
         let out: Box<dyn std::io::Write + Send> = Box::new(file);
         Ok(CsvFile {
-            sink: motion::csv::CsvSink::new(std::io::BufWriter::new(out)),
+            sink: trapq::csv::CsvSink::new(std::io::BufWriter::new(out)),
             temp: Some((temp, path.to_path_buf())),
         })
     }

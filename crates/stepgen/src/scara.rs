@@ -9,7 +9,7 @@
 //! A span is cut into runs where the motor rate provably keeps its sign: interval arithmetic on the formulas
 //! above over a stretch of the line (ρ² is a quadratic in `s`, so its range is exact) either excludes zero or
 //! the stretch is halved, down to a stretch of ~1e-13 s of travel around each turning point. On a run the
-//! motor is monotonic, so its steps are exactly those of [`MotorStepper::monotonic`]; each crossing is found
+//! motor is monotonic, so its steps are exactly those of [`StepRule::monotonic`]; each crossing is found
 //! by Newton's method on that one motor, started from the previous crossing with a second-order prediction
 //! and kept inside a bracket (bisection when Newton leaves it), so a crossing can be neither missed nor
 //! taken out of order. Levels go two at a time (`Crossings::try_pair`): both predicted from the last
@@ -32,9 +32,10 @@ use kinematics::{ElbowBranch, Kinematics, ReachError, unwrap_near};
 use trapq::Piece;
 
 use crate::error::StepError;
-use crate::motor::{LevelInverse, MotorStepper};
+use crate::general::GeneralState;
 use crate::sink::StepSink;
-use crate::timing::Span;
+use crate::step_rule::{LevelInverse, StepRule};
+use crate::timing::{Span, clamp_between};
 
 /// Target accuracy of a crossing, in seconds of travel (the old solver's was 1e-12 s).
 const ROOT_TIME_TOL: f64 = 1e-13;
@@ -587,34 +588,61 @@ impl LevelInverse for Crossings<'_> {
     }
 }
 
-impl MotorStepper {
-    /// Steps of a SCARA joint motor over one span.
-    pub(crate) fn scara_span<S: StepSink + ?Sized>(
-        &mut self,
-        piece: &Piece,
-        span: &Span,
+/// What a SCARA joint motor keeps between pieces.
+#[derive(Debug, Clone)]
+pub(crate) struct ScaraJointState {
+    geometry: ScaraGeometry,
+    joint: ScaraJoint,
+    /// The last shoulder angle `q1` (unwrapped), for unwrapping the next evaluation.
+    q1: f64,
+    /// The general solver, for spans near the reach limits.
+    general: GeneralState,
+}
+
+impl ScaraJointState {
+    /// A joint motor of the arm `geometry` starting at the pose whose motor positions are `start_motors`.
+    pub(crate) fn new(
         geometry: ScaraGeometry,
         joint: ScaraJoint,
+        general: GeneralState,
+        start_motors: &[f64],
+    ) -> Self {
+        let q1 = start_motors
+            .get(SHOULDER)
+            .map_or(0.0, |a| a - geometry.shoulder_zero());
+        ScaraJointState {
+            geometry,
+            joint,
+            q1,
+            general,
+        }
+    }
+
+    /// Steps of this joint motor (named `motor` in errors) over one span, by `rule`.
+    pub(crate) fn span_steps<S: StepSink + ?Sized>(
+        &mut self,
+        rule: &mut StepRule,
+        motor: &str,
+        piece: &Piece,
+        span: &Span,
         kin: &dyn Kinematics,
         sink: &mut S,
     ) -> Result<(), StepError> {
-        let line = JointLine::new(geometry, joint, piece);
+        let line = JointLine::new(self.geometry, self.joint, piece);
         let (d0, d1) = (span.d0, span.d1);
         if !line.reachable(d0.min(d1), d0.max(d1)) {
-            return self.scara_fallback(piece, span, geometry, kin, sink);
+            return self.fallback(rule, motor, piece, span, kin, sink);
         }
-        let error = |motor: &MotorStepper, s: f64, source: ReachError| StepError::Unreachable {
-            motor: motor.name().to_string(),
+        let error = |s: f64, source: ReachError| StepError::Unreachable {
+            motor: motor.to_string(),
             time: piece.print_time + span.time_at(s),
             source,
         };
-        let start = line
-            .eval(d0, self.scara_q1())
-            .map_err(|e| error(self, d0, e))?;
-        self.set_scara_q1(start.q1);
+        let start = line.eval(d0, self.q1).map_err(|e| error(d0, e))?;
+        self.q1 = start.q1;
         if line.a == 0.0 || d0 == d1 {
             // No XY motion: the joints cannot move.
-            self.settle(start.f, piece.print_time + span.t0, sink);
+            rule.settle(start.f, piece.print_time + span.t0, sink);
             return Ok(());
         }
         let tol = (span.max_speed() * ROOT_TIME_TOL)
@@ -628,13 +656,11 @@ impl MotorStepper {
         let mut runs = Runs::new(d0, d1);
         let mut at = (d0, start);
         while let Some((to, sign)) = runs.next(&line, tol) {
-            let end = line
-                .eval_far(at.0, &at.1, to)
-                .map_err(|e| error(self, to, e))?;
-            if let Err((s, e)) = self.joint_run(&context, (at.0, &at.1), (to, &end), sign, sink) {
-                return Err(error(self, s, e));
+            let end = line.eval_far(at.0, &at.1, to).map_err(|e| error(to, e))?;
+            if let Err((s, e)) = joint_run(rule, &context, (at.0, &at.1), (to, &end), sign, sink) {
+                return Err(error(s, e));
             }
-            self.set_scara_q1(end.q1);
+            self.q1 = end.q1;
             at = (to, end);
         }
         Ok(())
@@ -642,78 +668,76 @@ impl MotorStepper {
 
     /// A span near the reach limits: the general solver, unwrapping from (and then continuing) this motor's
     /// shoulder angle.
-    fn scara_fallback<S: StepSink + ?Sized>(
+    fn fallback<S: StepSink + ?Sized>(
         &mut self,
+        rule: &mut StepRule,
+        motor: &str,
         piece: &Piece,
         span: &Span,
-        geometry: ScaraGeometry,
         kin: &dyn Kinematics,
         sink: &mut S,
     ) -> Result<(), StepError> {
-        let zero = geometry.shoulder_zero();
-        let q1 = self.scara_q1();
-        if let Some(state) = self.general_state() {
-            state.set_motor(SHOULDER, q1 + zero);
-        }
-        let result = self.general_span(piece, span, kin, sink);
-        if let Some(a) = self.general_state().and_then(|state| state.motor(SHOULDER)) {
-            self.set_scara_q1(a - zero);
+        let zero = self.geometry.shoulder_zero();
+        self.general.set_motor(SHOULDER, self.q1 + zero);
+        let result = self.general.span_steps(rule, motor, piece, span, kin, sink);
+        if let Some(a) = self.general.motor(SHOULDER) {
+            self.q1 = a - zero;
         }
         result
     }
+}
 
-    /// Steps of one run from `a` to `b`; `sign` is the proven sign of the rate (`None`: a stretch of ~tol
-    /// around a turning point, taken as linear in the distance).
-    fn joint_run<S: StepSink + ?Sized>(
-        &mut self,
-        context: &RunContext,
-        a: (f64, &Point),
-        b: (f64, &Point),
-        sign: Option<f64>,
-        sink: &mut S,
-    ) -> Result<(), (f64, ReachError)> {
-        let RunContext {
-            line,
-            span,
-            print_time,
-            tol,
-        } = *context;
-        let ((sa, pa), (sb, pb)) = (a, b);
-        let ta = span.time_at(sa);
-        if sign.is_none() {
-            let (fa, fb) = (pa.f, pb.f);
-            let mut inverse = |level: f64| {
-                let k = if fb != fa {
-                    (level - fa) / (fb - fa)
-                } else {
-                    0.0
-                };
-                span.time_at(crate::motor::clamp_between(sa + k * (sb - sa), sa, sb))
+/// Steps of one run from `a` to `b`; `sign` is the proven sign of the rate (`None`: a stretch of ~tol
+/// around a turning point, taken as linear in the distance).
+fn joint_run<S: StepSink + ?Sized>(
+    rule: &mut StepRule,
+    context: &RunContext,
+    a: (f64, &Point),
+    b: (f64, &Point),
+    sign: Option<f64>,
+    sink: &mut S,
+) -> Result<(), (f64, ReachError)> {
+    let RunContext {
+        line,
+        span,
+        print_time,
+        tol,
+    } = *context;
+    let ((sa, pa), (sb, pb)) = (a, b);
+    let ta = span.time_at(sa);
+    if sign.is_none() {
+        let (fa, fb) = (pa.f, pb.f);
+        let mut inverse = |level: f64| {
+            let k = if fb != fa {
+                (level - fa) / (fb - fa)
+            } else {
+                0.0
             };
-            self.monotonic(fa, fb, ta, print_time, &mut inverse, sink);
-            return Ok(());
-        }
-        let mut crossings = Crossings {
-            line,
-            span,
-            before: sa,
-            after: sb,
-            end: sb,
-            rising: if pb.f >= pa.f { 1.0 } else { -1.0 },
-            prev: (sa, pa.f, pa.slope),
-            inv_slope: 1.0 / pa.slope,
-            inv_length: 10.0 / line.l1.min(line.l2),
-            curvature: (pb.slope - pa.slope) / (sb - sa),
-            anchor: *pa,
-            chained: 0,
-            tol,
-            failure: None,
+            span.time_at(clamp_between(sa + k * (sb - sa), sa, sb))
         };
-        self.monotonic(pa.f, pb.f, ta, print_time, &mut crossings, sink);
-        match crossings.failure {
-            Some(failure) => Err(failure),
-            None => Ok(()),
-        }
+        rule.monotonic(fa, fb, ta, print_time, &mut inverse, sink);
+        return Ok(());
+    }
+    let mut crossings = Crossings {
+        line,
+        span,
+        before: sa,
+        after: sb,
+        end: sb,
+        rising: if pb.f >= pa.f { 1.0 } else { -1.0 },
+        prev: (sa, pa.f, pa.slope),
+        inv_slope: 1.0 / pa.slope,
+        inv_length: 10.0 / line.l1.min(line.l2),
+        curvature: (pb.slope - pa.slope) / (sb - sa),
+        anchor: *pa,
+        chained: 0,
+        tol,
+        failure: None,
+    };
+    rule.monotonic(pa.f, pb.f, ta, print_time, &mut crossings, sink);
+    match crossings.failure {
+        Some(failure) => Err(failure),
+        None => Ok(()),
     }
 }
 

@@ -15,7 +15,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         setup.planner.apply_z_limits = false;
         setup.planner.initial_step_gen_time = setup.planner.buffer_time_start;
     }
-    let sink = motion::csv::CsvSink::new(std::io::stdout().lock());
+    let sink = trapq::csv::CsvSink::new(std::io::stdout().lock());
     let file = std::fs::File::open(input)?;
     let (sink, _) = printjob::plan_gcode(&setup, BufReader::new(file), input, sink)?;
     let _stdout = sink.finish()?;

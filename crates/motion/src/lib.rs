@@ -6,7 +6,6 @@
 
 pub mod arcs;
 mod centre;
-pub mod csv;
 pub mod driver;
 pub mod kinematic_limits;
 pub mod limits;

@@ -4,7 +4,7 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use motion::csv::CsvSink;
+use trapq::csv::CsvSink;
 use outfile::{OutputError, PendingFile, write_error};
 
 type Output = BufWriter<Box<dyn Write + Send>>;

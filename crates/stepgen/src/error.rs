@@ -39,9 +39,10 @@ pub enum StepError {
     NoStartPose,
 }
 
-/// Errors reading a golden `moves.csv(.gz)` file.
+/// Errors reading or writing a file this crate knows (step files, the moves CSV): an I/O error, or a place
+/// in the file (1-based line and column) and what is wrong there.
 #[derive(Debug, thiserror::Error)]
-pub enum MovesCsvError {
+pub enum FileError {
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -57,20 +58,8 @@ pub enum MovesCsvError {
     },
 }
 
+/// Errors reading a golden `moves.csv(.gz)` file.
+pub type MovesCsvError = FileError;
+
 /// Errors reading or writing step files (`clock dir` per line).
-#[derive(Debug, thiserror::Error)]
-pub enum StepFileError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        path: PathBuf,
-        line: usize,
-        column: usize,
-        message: String,
-    },
-}
+pub type StepFileError = FileError;

@@ -18,8 +18,8 @@ use kinematics::{Kinematics, Vec3};
 use trapq::Piece;
 
 use crate::error::StepError;
-use crate::motor::MotorStepper;
 use crate::sink::StepSink;
+use crate::step_rule::StepRule;
 use crate::timing::Span;
 
 /// Scratch state of a general motor: last motor positions (for unwrapping) and buffers.
@@ -88,21 +88,27 @@ const SLOPE_SAMPLES: usize = 17;
 /// Safety factor on the largest sampled slope.
 const SLOPE_MARGIN: f64 = 1.5;
 
-impl MotorStepper {
-    pub(crate) fn general_span<S: StepSink + ?Sized>(
+impl GeneralState {
+    /// Steps of this motor (named `motor` in errors) over one span, by `rule`.
+    pub(crate) fn span_steps<S: StepSink + ?Sized>(
         &mut self,
+        rule: &mut StepRule,
+        motor: &str,
         piece: &Piece,
         span: &Span,
         kin: &dyn Kinematics,
         sink: &mut S,
     ) -> Result<(), StepError> {
-        let mut walk = Walk::new(self, piece, span, kin)?;
-        walk.run(self, sink)
+        let mut walk = Walk::new(self, motor, rule.half_step(), piece, span, kin)?;
+        walk.run(rule, sink)
     }
 }
 
 /// One general-motor walk along a span.
 struct Walk<'a> {
+    state: &'a mut GeneralState,
+    /// The motor's name, for errors.
+    motor: &'a str,
     piece: &'a Piece,
     span: &'a Span,
     kin: &'a dyn Kinematics,
@@ -114,13 +120,17 @@ struct Walk<'a> {
 
 impl<'a> Walk<'a> {
     fn new(
-        motor: &mut MotorStepper,
+        state: &'a mut GeneralState,
+        motor: &'a str,
+        half_step: f64,
         piece: &'a Piece,
         span: &'a Span,
         kin: &'a dyn Kinematics,
     ) -> Result<Self, StepError> {
         let v_max = span.max_speed();
         let mut walk = Walk {
+            state,
+            motor,
             piece,
             span,
             kin,
@@ -130,11 +140,11 @@ impl<'a> Walk<'a> {
         };
         walk.s_tol = (v_max * ROOT_TIME_TOL)
             .max(4.0 * f64::EPSILON * span.d0.abs().max(span.d1.abs()).max(1.0));
-        walk.slope_bound = walk.bound_slope(motor)?;
+        walk.slope_bound = walk.bound_slope()?;
         // An unbounded slope (a singular pose in the span) keeps the time-based shortest step: the walk must
         // advance, and the steps between two samples are still found in order by the root solver.
         if walk.slope_bound > 0.0 && walk.slope_bound.is_finite() {
-            let half_step_travel = 0.5 * motor.spec().step_distance / walk.slope_bound;
+            let half_step_travel = half_step / walk.slope_bound;
             walk.min_ds = walk.min_ds.min(half_step_travel);
         }
         Ok(walk)
@@ -145,46 +155,40 @@ impl<'a> Walk<'a> {
         [p[0] + u[0] * s, p[1] + u[1] * s, p[2] + u[2] * s]
     }
 
-    fn error(&self, motor: &MotorStepper, s: f64, source: kinematics::ReachError) -> StepError {
+    fn error(&self, s: f64, source: kinematics::ReachError) -> StepError {
         let time = self.piece.print_time + self.span.time_at(s);
         StepError::Unreachable {
-            motor: motor.name().to_string(),
+            motor: self.motor.to_string(),
             time,
             source,
         }
     }
 
-    fn eval(&self, motor: &mut MotorStepper, s: f64) -> Result<f64, StepError> {
+    fn eval(&mut self, s: f64) -> Result<f64, StepError> {
         let p = self.point(s);
-        let result = match motor.general_state() {
-            Some(state) => state.position(self.kin, p),
-            None => Err(kinematics::ReachError::NotFinite),
-        };
-        result.map_err(|e| self.error(motor, s, e))
+        let result = self.state.position(self.kin, p);
+        result.map_err(|e| self.error(s, e))
     }
 
-    fn slope_at(&self, motor: &mut MotorStepper, s: f64) -> Result<f64, StepError> {
+    fn slope_at(&mut self, s: f64) -> Result<f64, StepError> {
         let p = self.point(s);
-        let result = match motor.general_state() {
-            Some(state) => state.slope(self.kin, p, self.piece.axes_r),
-            None => Err(kinematics::ReachError::NotFinite),
-        };
+        let result = self.state.slope(self.kin, p, self.piece.axes_r);
         match result {
             // On a singular pose (a SCARA arm straight) the motor position has no derivative but is defined:
             // the slope is unbounded, and the walk falls back to its shortest step there.
             Err(kinematics::ReachError::Singular { .. }) => Ok(f64::INFINITY),
-            other => other.map_err(|e| self.error(motor, s, e)),
+            other => other.map_err(|e| self.error(s, e)),
         }
     }
 
     /// Twice the largest sampled |df/ds|, with extra samples around the largest one.
-    fn bound_slope(&self, motor: &mut MotorStepper) -> Result<f64, StepError> {
+    fn bound_slope(&mut self) -> Result<f64, StepError> {
         let (d0, d1) = (self.span.d0, self.span.d1);
         let at = |i: f64, n: f64| d0 + (d1 - d0) * i / n;
         let n = (SLOPE_SAMPLES - 1) as f64;
         let (mut best, mut best_i) = (0.0f64, 0usize);
         for i in 0..SLOPE_SAMPLES {
-            let g = self.slope_at(motor, at(i as f64, n))?;
+            let g = self.slope_at(at(i as f64, n))?;
             if g > best {
                 best = g;
                 best_i = i;
@@ -196,7 +200,7 @@ impl<'a> Walk<'a> {
             let offset = k as f64 / 8.0;
             for pos in [centre - offset, centre + offset] {
                 if (0.0..=n).contains(&pos) {
-                    best = best.max(self.slope_at(motor, at(pos, n))?);
+                    best = best.max(self.slope_at(at(pos, n))?);
                 }
             }
         }
@@ -205,17 +209,17 @@ impl<'a> Walk<'a> {
 
     fn run<S: StepSink + ?Sized>(
         &mut self,
-        motor: &mut MotorStepper,
+        rule: &mut StepRule,
         sink: &mut S,
     ) -> Result<(), StepError> {
         let (d0, d1) = (self.span.d0, self.span.d1);
         let dir = if d1 >= d0 { 1.0 } else { -1.0 };
         let print_time = self.piece.print_time;
         let mut s = d0;
-        let mut f = self.eval(motor, s)?;
-        motor.settle(f, print_time + self.span.t0, sink);
+        let mut f = self.eval(s)?;
+        rule.settle(f, print_time + self.span.t0, sink);
         while (d1 - s) * dir > 0.0 {
-            let gap = (motor.up_level() - f).min(f - motor.down_level()).max(0.0);
+            let gap = (rule.up_level() - f).min(f - rule.down_level()).max(0.0);
             let ds = if self.slope_bound > 0.0 {
                 gap / self.slope_bound
             } else {
@@ -227,24 +231,24 @@ impl<'a> Walk<'a> {
             } else {
                 s + dir * ds
             };
-            let f_next = self.eval(motor, s_next)?;
+            let f_next = self.eval(s_next)?;
             // Every threshold crossed between the two samples, in order.
             loop {
-                if motor.wants_up(f_next) {
-                    let level = motor.up_level();
-                    let root = self.solve(motor, s, f, s_next, f_next, level)?;
-                    motor.step_up(print_time + self.span.time_at(root), sink);
+                if rule.wants_up(f_next) {
+                    let level = rule.up_level();
+                    let root = self.solve(s, f, s_next, f_next, level)?;
+                    rule.step_up(print_time + self.span.time_at(root), sink);
                     (s, f) = (root, level);
-                } else if motor.wants_down(f_next) {
-                    let level = motor.down_level();
-                    let root = self.solve(motor, s, f, s_next, f_next, level)?;
-                    motor.step_down(print_time + self.span.time_at(root), sink);
+                } else if rule.wants_down(f_next) {
+                    let level = rule.down_level();
+                    let root = self.solve(s, f, s_next, f_next, level)?;
+                    rule.step_down(print_time + self.span.time_at(root), sink);
                     (s, f) = (root, level);
                 } else {
                     break;
                 }
             }
-            motor.check_commit(f_next, sink);
+            rule.check_commit(f_next, sink);
             (s, f) = (s_next, f_next);
         }
         Ok(())
@@ -252,15 +256,7 @@ impl<'a> Walk<'a> {
 
     /// Distance where `f` crosses `level` between `a` and `b` (Illinois regula falsi with bisection safeguard).
     /// If `f(a)` is already past the level (inside the reversal margin) the crossing is taken at `a`.
-    fn solve(
-        &self,
-        motor: &mut MotorStepper,
-        a: f64,
-        fa: f64,
-        b: f64,
-        fb: f64,
-        level: f64,
-    ) -> Result<f64, StepError> {
+    fn solve(&mut self, a: f64, fa: f64, b: f64, fb: f64, level: f64) -> Result<f64, StepError> {
         let (mut lo, mut glo) = (a, fa - level);
         let (mut hi, mut ghi) = (b, fb - level);
         if ghi == 0.0 {
@@ -280,7 +276,7 @@ impl<'a> Walk<'a> {
             if !(x > min && x < max) {
                 x = 0.5 * (lo + hi);
             }
-            let gx = self.eval(motor, x)? - level;
+            let gx = self.eval(x)? - level;
             if gx == 0.0 {
                 return Ok(x);
             }

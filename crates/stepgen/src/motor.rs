@@ -1,18 +1,8 @@
-//! One motor's step generator: the step rule (Klipper itersolve semantics), the closed-form solvers for
-//! Cartesian axes, the extruder, the polar arm and the polar bed, and the dispatch to the general solver.
-//!
-//! Step rule: the commanded position `c` starts at the motor position of the start pose. A step in the current
-//! direction happens when the ideal position reaches `c ± step/2`; a step against the current direction needs
-//! the position to go `1e-9` (motor units) further than that, as in Klipper, but its time is still the crossing
-//! of `c ∓ step/2`. After a step `c` moves by one step. When the motor reaches its new commanded position, the
-//! pending step is committed (it can no longer be removed by the step+dir+step filter).
-//!
-//! `c` is updated with Klipper's own arithmetic (`(c ± step/2) ± step/2`, bed angle folded into [−π, π]
-//! after each piece). An exact grid `p0 + n·step` differs from it by accumulated rounding (up to ~1e-9 after
-//! a million steps), which moved 12% of the extruder clocks of `polar-cura-circle` by a tick; with Klipper's
-//! arithmetic they agree.
+//! One motor's step generator: the closed-form solvers for Cartesian axes, the extruder, the polar arm and
+//! the polar bed, and the dispatch to the SCARA joint solver (`crate::scara`) and the general solver
+//! (`crate::general`). Which steps a motor position makes is the step rule's (`crate::step_rule`).
 
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 use kinematics::scara::{ScaraGeometry, ScaraJoint};
 use kinematics::{Kinematics, MotorMap, RADIAL_ROUNDING, Vec3};
@@ -21,11 +11,10 @@ use trapq::{Motion, Piece};
 use crate::error::StepError;
 use crate::filter::StepFilter;
 use crate::general::GeneralState;
+use crate::scara::ScaraJointState;
 use crate::sink::StepSink;
-use crate::timing::{Span, monotonic_spans};
-
-/// Extra distance past the half-step point that a reversal needs (Klipper: `dist < -(half_step + 1e-9)`).
-pub const REVERSAL_MARGIN: f64 = 1e-9;
+use crate::step_rule::{LevelInverse, StepRule};
+use crate::timing::{Span, clamp_between, clamp_ordered, monotonic_spans};
 
 /// Klipper's planner can emit phases of about −1e-18 s by rounding; like Klipper, such pieces make no steps.
 const NEGLIGIBLE_DURATION: f64 = 1e-9;
@@ -93,29 +82,47 @@ impl Default for StepGenConfig {
     }
 }
 
-/// One motor's running state: commanded position, direction and filter.
+/// One motor's running state: the step rule (commanded position, direction and filter) and what its
+/// solver keeps between pieces.
 #[derive(Debug, Clone)]
 pub struct MotorStepper {
     spec: MotorSpec,
-    /// Commanded position, updated with Klipper's arithmetic (`c ± ½step ± ½step` per step; a polar bed
-    /// angle is brought back into [−π, π] after each piece) so that rounding follows Klipper's exactly.
-    commanded: f64,
-    half_step: f64,
-    /// Net steps taken.
-    net: i64,
-    /// Current step direction (Klipper's `sdir`; it starts "down").
-    dir_up: bool,
-    filter: StepFilter,
-    general: Option<GeneralState>,
-    /// A SCARA joint motor's last shoulder angle `q1` (unwrapped), for unwrapping the next evaluation.
-    scara_q1: f64,
-    /// A polar bed's ideal angle at the end of the last piece (continuous with `commanded`): the angle the bed
+    rule: StepRule,
+    solver: Solver,
+    /// A polar bed's ideal angle at the end of the last piece (continuous with the commanded position): the angle the bed
     /// keeps while the toolhead sits at the centre, where the angle of the position itself is undefined.
     bed_angle: f64,
     /// `(cos, sin)` of one step: a bed's levels advance by this rotation (computed once, not per stretch).
     step_rotation: [f64; 2],
-    /// Levels, then times, of the steps being generated (kept here so that no buffer is zeroed per stretch).
-    batch: [f64; STEP_BATCH],
+}
+
+/// What a motor without a closed form keeps between pieces.
+#[derive(Debug, Clone)]
+enum Solver {
+    ClosedForm,
+    General(GeneralState),
+    ScaraJoint(ScaraJointState),
+}
+
+impl Solver {
+    fn for_model(model: MotorModel, start_motors: &[f64]) -> Self {
+        match model {
+            MotorModel::General { index } => {
+                Solver::General(GeneralState::new(index, start_motors))
+            }
+            MotorModel::ScaraJoint {
+                geometry,
+                joint,
+                index,
+            } => Solver::ScaraJoint(ScaraJointState::new(
+                geometry,
+                joint,
+                GeneralState::new(index, start_motors),
+                start_motors,
+            )),
+            _ => Solver::ClosedForm,
+        }
+    }
 }
 
 impl MotorStepper {
@@ -128,31 +135,14 @@ impl MotorStepper {
         start_motors: &[f64],
         config: StepGenConfig,
     ) -> Self {
-        let general = match spec.model {
-            MotorModel::General { index } | MotorModel::ScaraJoint { index, .. } => {
-                Some(GeneralState::new(index, start_motors))
-            }
-            _ => None,
-        };
-        let scara_q1 = match spec.model {
-            MotorModel::ScaraJoint { geometry, .. } => start_motors
-                .get(kinematics::scara::SHOULDER)
-                .map_or(0.0, |a| a - geometry.shoulder_zero()),
-            _ => 0.0,
-        };
         let (step_sin, step_cos) = spec.step_distance.sin_cos();
+        let filter = StepFilter::new(config.clock_hz, config.filter_time);
         MotorStepper {
-            half_step: 0.5 * spec.step_distance,
+            rule: StepRule::new(spec.step_distance, start_position, filter),
+            solver: Solver::for_model(spec.model, start_motors),
             spec,
-            commanded: start_position,
-            net: 0,
-            dir_up: false,
-            filter: StepFilter::new(config.clock_hz, config.filter_time),
-            general,
-            scara_q1,
             bed_angle: start_position,
             step_rotation: [step_cos, step_sin],
-            batch: [0.0; STEP_BATCH],
         }
     }
 
@@ -163,12 +153,17 @@ impl MotorStepper {
     /// The commanded position: start position plus the net steps taken so far, times the step distance
     /// (a polar bed angle modulo 2π, kept in about [−π, π]).
     pub fn commanded_position(&self) -> f64 {
-        self.commanded
+        self.rule.commanded_position()
     }
 
     /// Step pairs removed by the step+dir+step filter so far.
     pub fn filtered_pairs(&self) -> u64 {
-        self.filter.filtered_pairs()
+        self.rule.filtered_pairs()
+    }
+
+    /// Net steps taken so far (+1 per step up, −1 per step down, before filtering).
+    pub fn net_steps(&self) -> i64 {
+        self.rule.net_steps()
     }
 
     /// Generate the steps of one piece. Pieces must come in print-time order.
@@ -186,7 +181,8 @@ impl MotorStepper {
             && dot3(coeffs, piece.axes_r) == 0.0
         {
             // This motor does not move along the piece (Z during a layer): only a jump can step it.
-            self.settle(dot3(coeffs, piece.start_pos), piece.print_time, sink);
+            self.rule
+                .settle(dot3(coeffs, piece.start_pos), piece.print_time, sink);
             return Ok(());
         }
         let (spans, count) = monotonic_spans(piece);
@@ -195,10 +191,9 @@ impl MotorStepper {
                 MotorModel::Linear { coeffs } => self.linear_span(piece, span, coeffs, sink),
                 MotorModel::Radius { centre } => self.radius_span(piece, span, centre, sink),
                 MotorModel::Angle { centre } => self.angle_span(piece, span, centre, sink)?,
-                MotorModel::ScaraJoint {
-                    geometry, joint, ..
-                } => self.scara_span(piece, span, geometry, joint, kin, sink)?,
-                MotorModel::General { .. } => self.general_span(piece, span, kin, sink)?,
+                MotorModel::ScaraJoint { .. } | MotorModel::General { .. } => {
+                    self.solved_span(piece, span, kin, sink)?
+                }
             }
         }
         if let MotorModel::Angle { .. } = self.spec.model {
@@ -210,25 +205,41 @@ impl MotorStepper {
     /// Keep a bed angle's commanded position within about [−π, π], as Klipper does after every piece: it
     /// bounds the rounding of the commanded position however many turns the bed makes.
     fn normalise_angle(&mut self) {
-        if self.commanded < -PI {
-            self.commanded += TAU;
-            self.bed_angle += TAU;
-        } else if self.commanded > PI {
-            self.commanded -= TAU;
-            self.bed_angle -= TAU;
+        if let Some(turn) = self.rule.fold_turn() {
+            self.bed_angle += turn;
+        }
+    }
+
+    /// Steps of a motor without a closed form over one span, by the solver its model was given.
+    fn solved_span<S: StepSink + ?Sized>(
+        &mut self,
+        piece: &Piece,
+        span: &Span,
+        kin: &dyn Kinematics,
+        sink: &mut S,
+    ) -> Result<(), StepError> {
+        let motor = self.spec.name.as_str();
+        match &mut self.solver {
+            Solver::General(state) => {
+                state.span_steps(&mut self.rule, motor, piece, span, kin, sink)
+            }
+            Solver::ScaraJoint(state) => {
+                state.span_steps(&mut self.rule, motor, piece, span, kin, sink)
+            }
+            // Closed-form models never come here (`process` steps them itself).
+            Solver::ClosedForm => Ok(()),
         }
     }
 
     /// End of input: the held-back step is final, and every final step goes to the sink.
     pub fn finish<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
-        self.filter.commit(sink);
-        self.filter.flush(sink);
+        self.rule.finish(sink);
     }
 
     /// Hand the final steps generated so far to the sink (they are otherwise collected into longer slices;
     /// the held-back step stays held back).
     pub fn flush<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
-        self.filter.flush(sink);
+        self.rule.flush(sink);
     }
 
     #[inline]
@@ -262,205 +273,6 @@ impl MotorStepper {
         }
     }
 
-    /// Emit, at one instant, the steps a position `f` already demands (a jump by rounding between pieces),
-    /// then commit the pending step if the motor has reached its commanded position.
-    /// Nearly always nothing is due (the position is where the last stretch left it), so that test is inlined
-    /// at every piece and the stepping kept out of line.
-    #[inline(always)]
-    pub(crate) fn settle<S: StepSink + ?Sized>(&mut self, f: f64, time: f64, sink: &mut S) {
-        if self.wants_up(f) || self.wants_down(f) {
-            self.settle_steps(f, time, sink);
-        }
-        self.check_commit(f, sink);
-    }
-
-    #[inline(never)]
-    fn settle_steps<S: StepSink + ?Sized>(&mut self, f: f64, time: f64, sink: &mut S) {
-        while self.wants_up(f) {
-            self.step_up(time, sink);
-        }
-        while self.wants_down(f) {
-            self.step_down(time, sink);
-        }
-    }
-
-    #[inline]
-    pub(crate) fn wants_up(&self, f: f64) -> bool {
-        let level = self.up_level();
-        if self.dir_up {
-            f >= level
-        } else {
-            f > level + REVERSAL_MARGIN
-        }
-    }
-
-    #[inline]
-    pub(crate) fn wants_down(&self, f: f64) -> bool {
-        let level = self.down_level();
-        if self.dir_up {
-            f < level - REVERSAL_MARGIN
-        } else {
-            f <= level
-        }
-    }
-
-    /// The position at which the next step up / down happens: `commanded ± ½step`.
-    #[inline]
-    pub(crate) fn up_level(&self) -> f64 {
-        self.commanded + self.half_step
-    }
-
-    #[inline]
-    pub(crate) fn down_level(&self) -> f64 {
-        self.commanded - self.half_step
-    }
-
-    #[inline]
-    fn wants_step(&self, f: f64, up: bool) -> bool {
-        if up {
-            self.wants_up(f)
-        } else {
-            self.wants_down(f)
-        }
-    }
-
-    /// Move the commanded position one step, with Klipper's arithmetic (`c ± ½step ± ½step`).
-    #[inline]
-    fn advance(&mut self, up: bool) {
-        if up {
-            self.net += 1;
-            self.commanded = (self.commanded + self.half_step) + self.half_step;
-        } else {
-            self.net -= 1;
-            self.commanded = (self.commanded - self.half_step) - self.half_step;
-        }
-        self.dir_up = up;
-    }
-
-    #[inline]
-    pub(crate) fn step_up<S: StepSink + ?Sized>(&mut self, time: f64, sink: &mut S) {
-        self.advance(true);
-        self.filter.push(time, true, sink);
-    }
-
-    #[inline]
-    pub(crate) fn step_down<S: StepSink + ?Sized>(&mut self, time: f64, sink: &mut S) {
-        self.advance(false);
-        self.filter.push(time, false, sink);
-    }
-
-    /// Net steps taken so far (+1 per step up, −1 per step down, before filtering).
-    pub fn net_steps(&self) -> i64 {
-        self.net
-    }
-
-    #[inline(always)]
-    pub(crate) fn check_commit<S: StepSink + ?Sized>(&mut self, f: f64, sink: &mut S) {
-        let commanded = self.commanded_position();
-        let reached = if self.dir_up {
-            f > commanded
-        } else {
-            f < commanded
-        };
-        if reached {
-            self.filter.commit(sink);
-        }
-    }
-
-    pub(crate) fn general_state(&mut self) -> Option<&mut GeneralState> {
-        self.general.as_mut()
-    }
-
-    pub(crate) fn scara_q1(&self) -> f64 {
-        self.scara_q1
-    }
-
-    pub(crate) fn set_scara_q1(&mut self, q1: f64) {
-        self.scara_q1 = q1;
-    }
-
-    pub(crate) fn name(&self) -> &str {
-        &self.spec.name
-    }
-
-    /// Steps of a stretch where the position moves monotonically from `fa` (at `t_a`) to `fb`.
-    /// `time_at_level` maps a position level between them to a time relative to the piece start.
-    #[inline]
-    pub(crate) fn monotonic<S: StepSink + ?Sized, I: LevelInverse>(
-        &mut self,
-        fa: f64,
-        fb: f64,
-        t_a: f64,
-        print_time: f64,
-        inverse: &mut I,
-        sink: &mut S,
-    ) {
-        self.settle(fa, print_time + t_a, sink);
-        if fb > fa {
-            self.steps_towards::<true, S, I>(fb, print_time, inverse, sink);
-        } else if fb != fa {
-            self.steps_towards::<false, S, I>(fb, print_time, inverse, sink);
-        }
-        self.check_commit(fb, sink);
-    }
-
-    /// Every step from the commanded position towards `fb` (up or down), a batch at a time: one tight loop
-    /// finds each level (Klipper's arithmetic on the commanded position) and its time, then the filter and
-    /// sink take the batch. The levels form one serial chain of additions and a bed's ray rotation another;
-    /// with both in one loop and in registers the CPU runs the chains side by side, and the divisions and
-    /// square roots of a batch overlap them.
-    #[inline]
-    fn steps_towards<const UP: bool, S: StepSink + ?Sized, I: LevelInverse>(
-        &mut self,
-        fb: f64,
-        print_time: f64,
-        inverse: &mut I,
-        sink: &mut S,
-    ) {
-        // Only the first step can be a reversal (with its margin); after it the direction is `up`, and a
-        // step is due while the next level has not passed `fb`.
-        let up = UP;
-        if !self.wants_step(fb, up) {
-            return;
-        }
-        // Klipper's `(c ± ½step) ± ½step`: adding −½step is the same operation as subtracting ½step.
-        let half = if up { self.half_step } else { -self.half_step };
-        let dir = if up { 1.0 } else { -1.0 };
-        let due = |level: f64| if up { fb >= level } else { fb <= level };
-        let mut commanded = self.commanded;
-        loop {
-            inverse.start_batch(commanded + half, dir);
-            let mut count = 0;
-            let more = loop {
-                let level = commanded + half;
-                commanded = level + half;
-                if I::PAIRS && count + 2 <= STEP_BATCH && due(commanded + half) {
-                    let second = commanded + half;
-                    commanded = second + half;
-                    let (ta, tb) = inverse.next_pair(level, second);
-                    self.batch[count] = ta;
-                    self.batch[count + 1] = tb;
-                    count += 2;
-                } else {
-                    self.batch[count] = inverse.next_time(level);
-                    count += 1;
-                }
-                let more = due(commanded + half);
-                if count == STEP_BATCH || !more {
-                    break more;
-                }
-            };
-            self.net += if up { count as i64 } else { -(count as i64) };
-            self.filter
-                .push_run(&self.batch[..count], print_time, up, sink);
-            if !more {
-                break;
-            }
-        }
-        self.commanded = commanded;
-        self.dir_up = up;
-    }
-
     fn linear_span<S: StepSink + ?Sized>(
         &mut self,
         piece: &Piece,
@@ -476,7 +288,8 @@ impl MotorStepper {
             let s = clamp_between((level - k0) / k1, span.d0, span.d1);
             span.time_at(s)
         };
-        self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
+        self.rule
+            .monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
     }
 
     fn radius_span<S: StepSink + ?Sized>(
@@ -510,7 +323,8 @@ impl MotorStepper {
                 let along = ((level - perp) * (level + perp)).max(0.0).sqrt() * inv_speed_factor;
                 span.time_at(clamp_between(s_turn + side * along, sa, sb))
             };
-            self.monotonic(fa, fb, ta, piece.print_time, &mut inverse, sink);
+            self.rule
+                .monotonic(fa, fb, ta, piece.print_time, &mut inverse, sink);
         }
     }
 
@@ -538,12 +352,13 @@ impl MotorStepper {
             return self.radial_span(piece, span, &line, sink);
         }
         let raw = qa[1].atan2(qa[0]);
-        let fa = raw + TAU * ((self.commanded_position() - raw) / TAU).round();
+        let fa = raw + TAU * ((self.rule.commanded_position() - raw) / TAU).round();
         // Swept angle along a line is below π; its sign is the sign of cross(P, U) times the travel.
         let sweep = ((span.d1 - span.d0) * line.cross).atan2(qa[0] * qb[0] + qa[1] * qb[1]);
         let fb = fa + sweep;
         let mut inverse = AngleInverse::new(&line, span, self.step_rotation);
-        self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
+        self.rule
+            .monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
         Ok(())
     }
@@ -580,7 +395,7 @@ impl MotorStepper {
             let raw = off_centre[1].atan2(off_centre[0]);
             raw + TAU * ((self.bed_angle - raw) / TAU).round()
         };
-        self.settle(angle, piece.print_time + span.t0, sink);
+        self.rule.settle(angle, piece.print_time + span.t0, sink);
         self.bed_angle = angle;
         Ok(())
     }
@@ -592,39 +407,9 @@ impl MotorStepper {
         let fa = self.bed_angle;
         let fb = base + span.d1;
         let mut inverse = |level: f64| span.time_at(clamp_between(level - base, span.d0, span.d1));
-        self.monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
+        self.rule
+            .monotonic(fa, fb, span.t0, piece.print_time, &mut inverse, sink);
         self.bed_angle = fb;
-    }
-}
-
-/// Steps handled per batch in [`MotorStepper::steps_towards`].
-const STEP_BATCH: usize = 64;
-
-/// Maps position levels to the times (relative to the piece start) at which the motor reaches them. A batch
-/// of levels starts at `first` and goes on one step apart in direction `dir` (+1 up, −1 down).
-pub(crate) trait LevelInverse {
-    /// A batch starts at level `first` (called before its first [`Self::next_time`]).
-    #[inline]
-    fn start_batch(&mut self, _first: f64, _dir: f64) {}
-
-    /// The time of `level`, the next level of the batch.
-    fn next_time(&mut self, level: f64) -> f64;
-
-    /// Whether [`Self::next_pair`] is worth calling (it finds two levels with overlapping arithmetic).
-    const PAIRS: bool = false;
-
-    /// The times of the next two levels of the batch, `a` then `b`.
-    #[inline]
-    fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
-        let ta = self.next_time(a);
-        (ta, self.next_time(b))
-    }
-}
-
-impl<F: FnMut(f64) -> f64> LevelInverse for F {
-    #[inline(always)]
-    fn next_time(&mut self, level: f64) -> f64 {
-        self(level)
     }
 }
 
@@ -688,7 +473,7 @@ impl PlaneLine {
 /// Bed angle → distance: the line meets the ray at angle θ where cross((cos θ, sin θ), P + U·s) = 0.
 /// Within one monotonic stretch the levels come one step apart in one direction, so (cos θ, sin θ) advance
 /// by a fixed rotation; the exact value is computed at the first level of every batch (at most
-/// [`STEP_BATCH`] levels), so rounding cannot accumulate (measured drift at most 1.3e-14 after 63 rotations).
+/// [`crate::step_rule::STEP_BATCH`] levels), so rounding cannot accumulate (measured drift at most 1.3e-14 after 63 rotations).
 struct AngleInverse<'a> {
     line: &'a PlaneLine,
     span: &'a Span,
@@ -754,20 +539,4 @@ impl LevelInverse for AngleInverse<'_> {
 #[inline]
 fn dot3(a: Vec3, b: Vec3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Clamp `x` into the closed range between `a` and `b` (in either order); NaN becomes the lower end.
-/// Written as comparisons and selects, which compile to single min/max instructions (`f64::min`/`max`
-/// add NaN handling): it runs on every step.
-#[inline]
-pub(crate) fn clamp_between(x: f64, a: f64, b: f64) -> f64 {
-    let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
-    clamp_ordered(x, lo, hi)
-}
-
-/// Clamp `x` into `[lo, hi]` (`lo ≤ hi`); NaN becomes `lo`.
-#[inline]
-pub(crate) fn clamp_ordered(x: f64, lo: f64, hi: f64) -> f64 {
-    let above = if x > lo { x } else { lo };
-    if above < hi { above } else { hi }
 }

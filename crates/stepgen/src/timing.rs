@@ -1,9 +1,8 @@
-//! Time along a piece: splitting a piece where its speed changes sign, and the exact inverse of the
-//! distance law `d(t) = v0·t + h·t²` (numerically stable quadratic roots).
+//! Time along a piece: splitting a piece where its speed changes sign, the exact inverse of the
+//! distance law `d(t) = v0·t + h·t²` (numerically stable quadratic roots), and the clamps that keep a
+//! computed time or distance inside its range.
 
 use trapq::Piece;
-
-use crate::motor::clamp_ordered;
 
 /// A time range of a piece over which the travelled distance changes monotonically.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,6 +91,22 @@ pub(crate) fn monotonic_spans(piece: &Piece) -> ([Span; 2], usize) {
         let span = make(0.0, dur);
         ([span, span], 1)
     }
+}
+
+/// Clamp `x` into the closed range between `a` and `b` (in either order); NaN becomes the lower end.
+/// Written as comparisons and selects, which compile to single min/max instructions (`f64::min`/`max`
+/// add NaN handling): it runs on every step.
+#[inline]
+pub(crate) fn clamp_between(x: f64, a: f64, b: f64) -> f64 {
+    let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+    clamp_ordered(x, lo, hi)
+}
+
+/// Clamp `x` into `[lo, hi]` (`lo ≤ hi`); NaN becomes `lo`.
+#[inline]
+pub(crate) fn clamp_ordered(x: f64, lo: f64, hi: f64) -> f64 {
+    let above = if x > lo { x } else { lo };
+    if above < hi { above } else { hi }
 }
 
 #[cfg(test)]

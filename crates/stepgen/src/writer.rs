@@ -2,16 +2,15 @@
 //! gzip when the name ends in `.gz`. Written to a temporary file beside the target and renamed into place on
 //! [`StepFileWriter::finish`], so a failed run leaves no half-written file. Also reads such files back.
 
-use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use flate2::Compression;
-use flate2::read::MultiGzDecoder;
 use flate2::write::GzEncoder;
 use tempfile::NamedTempFile;
 
 use crate::error::StepFileError;
+use crate::gzip::{is_gzip, open_text};
 use crate::sink::{Step, StepSink};
 
 enum Output {
@@ -58,7 +57,7 @@ impl StepFileWriter {
                     source,
                 })?;
         let buffered = BufWriter::with_capacity(1 << 16, temp);
-        let out = if path.extension().is_some_and(|e| e == "gz") {
+        let out = if is_gzip(&path) {
             Output::Gzip(GzEncoder::new(buffered, Compression::default()))
         } else {
             Output::Plain(buffered)
@@ -119,12 +118,7 @@ pub fn read_step_file(path: impl AsRef<Path>) -> Result<Vec<Step>, StepFileError
         path: path.to_path_buf(),
         source,
     };
-    let file = File::open(path).map_err(io)?;
-    let reader: Box<dyn Read> = if path.extension().is_some_and(|e| e == "gz") {
-        Box::new(MultiGzDecoder::new(file))
-    } else {
-        Box::new(file)
-    };
+    let reader = open_text(path).map_err(io)?;
     let mut steps = Vec::new();
     for (index, line) in BufReader::with_capacity(1 << 16, reader)
         .lines()

@@ -3,6 +3,9 @@
 //! This mirrors Klipper's trapezoid queue (`trapq`): a planned move becomes up to three pieces (accelerate,
 //! cruise, decelerate); each piece moves along a fixed unit direction with constant acceleration.
 //! The planner (`motion`) produces pieces; step generation (`stepgen`) and the simulator consume them.
+//! [`csv`] writes and reads planned moves as Klipper-comparable files (the moves CSV).
+
+pub mod csv;
 
 /// A Cartesian toolhead position or direction, `[x, y, z]` in mm.
 pub type Vec3 = [f64; 3];

@@ -2,9 +2,9 @@
 //! one Klipper recorded (`moves.csv.gz`): same rows in the same order, every value equal within 1e-9 relative.
 
 use flate2::read::GzDecoder;
-use motion::csv::{CsvSink, parse_row};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
+use trapq::csv::{CsvSink, parse_row};
 use trapq::{Queue, TrapezoidMove};
 
 fn golden_dir() -> Option<PathBuf> {
@@ -27,7 +27,7 @@ fn read_golden_moves(case: &Path) -> Vec<(Queue, TrapezoidMove)> {
         .skip(1)
         .map(|line| {
             let line = line.expect("reads");
-            parse_row(&line).unwrap_or_else(|| panic!("bad golden row {line}"))
+            parse_row(&line).unwrap_or_else(|e| panic!("bad golden row {line}: {e:?}"))
         })
         .collect()
 }

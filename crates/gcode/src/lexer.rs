@@ -401,15 +401,26 @@ impl Lexer<'_, '_> {
     fn run(&mut self) -> Result<(), LexError> {
         self.skip_blanks();
         self.line_number()?;
+        match self.past_comments()? {
+            None => Ok(()),
+            Some(b'*') => self.checksum(),
+            Some(b) if b.is_ascii_alphabetic() || b == b'_' => self.command(),
+            Some(_) => Err(self.unexpected_char()),
+        }
+    }
+
+    /// Skips blanks and `( )` comments and takes a `;` comment (it ends the line). Gives the byte
+    /// after them, `None` at the line's end.
+    fn past_comments(&mut self) -> Result<Option<u8>, LexError> {
         loop {
             self.skip_blanks();
             match self.peek() {
-                None => return Ok(()),
-                Some(b';') => return self.semicolon_comment(),
+                Some(b';') => {
+                    self.semicolon_comment()?;
+                    return Ok(None);
+                }
                 Some(b'(') => self.paren_comment()?,
-                Some(b'*') => return self.checksum(),
-                Some(b) if b.is_ascii_alphabetic() || b == b'_' => return self.command(),
-                Some(_) => return Err(self.unexpected_char()),
+                next => return Ok(next),
             }
         }
     }
@@ -699,14 +710,9 @@ impl Lexer<'_, '_> {
     fn checksum(&mut self) -> Result<(), LexError> {
         let star = self.pos;
         self.checksum_at(star)?;
-        loop {
-            self.skip_blanks();
-            match self.peek() {
-                None => return Ok(()),
-                Some(b';') => return self.semicolon_comment(),
-                Some(b'(') => self.paren_comment()?,
-                Some(_) => return Err(self.unexpected_char()),
-            }
+        match self.past_comments()? {
+            None => Ok(()),
+            Some(_) => Err(self.unexpected_char()),
         }
     }
 

@@ -3,7 +3,7 @@
 use std::io::BufRead;
 use std::sync::Arc;
 
-use super::{Interpreter, InterpreterOptions};
+use super::state::{Interpreter, InterpreterOptions};
 use crate::command::{Command, Spanned};
 use crate::error::{GcodeError, Warning};
 use crate::reader::Reader;

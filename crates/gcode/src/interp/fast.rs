@@ -3,7 +3,7 @@
 //! path.
 
 use super::arcs::{ArcEnds, checked_centre};
-use super::{Interpreter, Plane, layer_change};
+use super::state::{Interpreter, Plane, layer_change};
 use crate::command::{Arc as ArcMove, Command, Move, Position, Span, Spanned};
 use crate::lexer::span_of;
 use crate::meta::{CommentMeta, comment_meta, may_start_meta};

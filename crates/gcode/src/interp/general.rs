@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use super::arcs::{ArcEnds, MAX_ARC_TURNS, centre_offset_from_radius, checked_centre};
-use super::{Interpreter, Plane, layer_change};
+use super::state::{Interpreter, Plane, layer_change};
 use crate::command::{
     AccelParams, Arc as ArcMove, Command, Meta, Move, Position, Span, Spanned, VelocityLimit,
 };
@@ -34,7 +34,7 @@ impl Interpreter {
 
     /// Interprets one line. The line's main command is returned directly when nothing is queued
     /// before it (the common case: no queue round trip, and already in the shape
-    /// [`Commands::next_command`] returns); anything else is queued after it.
+    /// [`crate::Commands::next_command`] returns); anything else is queued after it.
     pub(super) fn interpret(
         &mut self,
         line: &Line<'_>,
@@ -348,7 +348,7 @@ impl Interpreter {
             .map_err(|axis| Box::new((spans[axis], ErrorKind::NumberOverflow)))
     }
 
-    /// M220 S<percent>: rescales the current speed (Klipper keeps the requested F).
+    /// M220 `S<percent>`: rescales the current speed (Klipper keeps the requested F).
     fn speed_override(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
         self.check_letters(line, bit(b'S'));
         let percent = positive_percent(line)?;
@@ -362,7 +362,7 @@ impl Interpreter {
         Ok(Command::SpeedFactor(percent))
     }
 
-    /// M221 S<percent>: keeps the G-code E position continuous.
+    /// M221 `S<percent>`: keeps the G-code E position continuous.
     fn extrude_override(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
         self.check_letters(line, bit(b'S'));
         let percent = positive_percent(line)?;

@@ -1,7 +1,7 @@
 use std::io::BufRead;
 
 use super::*;
-use crate::command::VelocityLimit;
+use crate::command::{Command, Meta, Move, VelocityLimit};
 use crate::error::{ErrorKind, GcodeError, WarningKind};
 use crate::reader::{Reader, ReaderOptions};
 use crate::test_input::{each_corpus_file, gcode_lines};

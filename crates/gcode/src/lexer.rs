@@ -401,26 +401,22 @@ impl Lexer<'_, '_> {
     fn run(&mut self) -> Result<(), LexError> {
         self.skip_blanks();
         self.line_number()?;
-        match self.past_comments()? {
-            None => Ok(()),
-            Some(b'*') => self.checksum(),
-            Some(b) if b.is_ascii_alphabetic() || b == b'_' => self.command(),
-            Some(_) => Err(self.unexpected_char()),
-        }
+        self.rest_of_line(true)
     }
 
-    /// Skips blanks and `( )` comments and takes a `;` comment (it ends the line). Gives the byte
-    /// after them, `None` at the line's end.
-    fn past_comments(&mut self) -> Result<Option<u8>, LexError> {
+    /// The rest of the line: blanks and comments, and, where `code` may still come, a command
+    /// or a checksum.
+    #[inline(always)]
+    fn rest_of_line(&mut self, code: bool) -> Result<(), LexError> {
         loop {
             self.skip_blanks();
             match self.peek() {
-                Some(b';') => {
-                    self.semicolon_comment()?;
-                    return Ok(None);
-                }
+                None => return Ok(()),
+                Some(b';') => return self.semicolon_comment(),
                 Some(b'(') => self.paren_comment()?,
-                next => return Ok(next),
+                Some(b'*') if code => return self.checksum(),
+                Some(b) if code && (b.is_ascii_alphabetic() || b == b'_') => return self.command(),
+                Some(_) => return Err(self.unexpected_char()),
             }
         }
     }
@@ -710,10 +706,7 @@ impl Lexer<'_, '_> {
     fn checksum(&mut self) -> Result<(), LexError> {
         let star = self.pos;
         self.checksum_at(star)?;
-        match self.past_comments()? {
-            None => Ok(()),
-            Some(_) => Err(self.unexpected_char()),
-        }
+        self.rest_of_line(false)
     }
 
     fn checksum_at(&mut self, star: usize) -> Result<(), LexError> {

@@ -14,6 +14,23 @@ use crate::command::Span;
 use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
 use crate::lexer::{Line, LineTokens, lex_utf8_bytes, span_of, utf8};
 
+/// The input's buffered bytes (`fill_buf`, retried while interrupted); another read error goes to
+/// `$failed`, which must leave the function. A macro, not a function: a function returning the
+/// bytes from its retry loop would keep the input borrowed on the retrying path too (the borrow
+/// checker's "NLL problem case 3"), and one taking a closure made the fast path's per-line
+/// hand-over a few instructions longer.
+macro_rules! filled {
+    ($input:expr, $err:ident => $failed:expr) => {
+        loop {
+            match $input.fill_buf() {
+                Ok(bytes) => break bytes,
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
+                Err($err) => $failed,
+            }
+        }
+    };
+}
+
 /// Reader settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ReaderOptions {
@@ -224,26 +241,17 @@ impl<R: BufRead> Reader<R> {
             return None;
         }
         self.consume_deferred();
-        let (skip_lf, line, offer_len) = (self.skip_lf, self.line, self.offer_len);
-        let looked = look_at_buffer(&mut self.input, |available| {
-            let start = usize::from(skip_lf && available.first() == Some(&b'\n'));
-            let offered_end = available.len().min(start.saturating_add(offer_len));
-            let len = take(available.get(start..offered_end)?, line + 1)?;
-            let end = start + len;
-            debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
-            Some((
-                available.get(end) == Some(&b'\r'),
-                (end + 1).min(available.len()),
-            ))
+        let available = filled!(self.input, err => {
+            self.pending_io_error = Some(err);
+            return None;
         });
-        let (skip_lf, consume) = match looked {
-            Ok(taken) => taken?,
-            Err(err) => {
-                self.pending_io_error = Some(err);
-                return None;
-            }
-        };
-        self.skip_lf = skip_lf;
+        let start = usize::from(self.skip_lf && available.first() == Some(&b'\n'));
+        let offered_end = available.len().min(start.saturating_add(self.offer_len));
+        let len = take(available.get(start..offered_end)?, self.line + 1)?;
+        let end = start + len;
+        debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
+        self.skip_lf = available.get(end) == Some(&b'\r');
+        let consume = (end + 1).min(available.len());
         self.input.consume(consume);
         self.utf8_checked = self.utf8_checked.saturating_sub(consume);
         self.line += 1;
@@ -265,27 +273,25 @@ impl<R: BufRead> Reader<R> {
         }
         self.consume_deferred();
         let offer_len = self.offer_len;
-        let (mut pos, mut skip_lf, mut line) = (0, self.skip_lf, self.line);
-        let looked = look_at_buffer(&mut self.input, |available| {
-            loop {
-                let start = pos + usize::from(skip_lf && available.get(pos) == Some(&b'\n'));
-                let offered_end = available.len().min(start.saturating_add(offer_len));
-                let Some(offered) = available.get(start..offered_end) else {
-                    break;
-                };
-                let Some(len) = take(offered, line + 1) else {
-                    break;
-                };
-                let end = start + len;
-                debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
-                skip_lf = available.get(end) == Some(&b'\r');
-                pos = (end + 1).min(available.len());
-                line += 1;
-            }
-        });
-        if let Err(err) = looked {
+        let available = filled!(self.input, err => {
             self.pending_io_error = Some(err);
             return 0;
+        });
+        let (mut pos, mut skip_lf, mut line) = (0, self.skip_lf, self.line);
+        loop {
+            let start = pos + usize::from(skip_lf && available.get(pos) == Some(&b'\n'));
+            let offered_end = available.len().min(start.saturating_add(offer_len));
+            let Some(offered) = available.get(start..offered_end) else {
+                break;
+            };
+            let Some(len) = take(offered, line + 1) else {
+                break;
+            };
+            let end = start + len;
+            debug_assert!(matches!(available.get(end), Some(b'\n' | b'\r')));
+            skip_lf = available.get(end) == Some(&b'\r');
+            pos = (end + 1).min(available.len());
+            line += 1;
         }
         let taken = (line - self.line) as usize;
         self.input.consume(pos);
@@ -307,24 +313,23 @@ impl<R: BufRead> Reader<R> {
 
     /// Finds the next line in the current input buffer without consuming it.
     fn locate_line(&mut self) -> io::Result<Located> {
-        look_at_buffer(&mut self.input, |available| {
-            if available.is_empty() {
-                return Located::Eof;
-            }
-            let start = usize::from(self.skip_lf && available[0] == b'\n');
-            let Some(i) = memchr::memchr2(b'\n', b'\r', &available[start..]) else {
-                return Located::Split;
-            };
-            let end = start + i;
-            if end - start > self.options.max_line_len {
-                return Located::Split;
-            }
-            self.skip_lf = available[end] == b'\r';
-            Located::InBuffer {
-                start,
-                end,
-                consume: end + 1,
-            }
+        let available = filled!(self.input, err => return Err(err));
+        if available.is_empty() {
+            return Ok(Located::Eof);
+        }
+        let start = usize::from(self.skip_lf && available[0] == b'\n');
+        let Some(i) = memchr::memchr2(b'\n', b'\r', &available[start..]) else {
+            return Ok(Located::Split);
+        };
+        let end = start + i;
+        if end - start > self.options.max_line_len {
+            return Ok(Located::Split);
+        }
+        self.skip_lf = available[end] == b'\r';
+        Ok(Located::InBuffer {
+            start,
+            end,
+            consume: end + 1,
         })
     }
 
@@ -345,55 +350,36 @@ impl<R: BufRead> Reader<R> {
         let mut got_any = false;
         let mut too_long = false;
         loop {
-            let copied = look_at_buffer(&mut self.input, |available| {
-                if available.is_empty() {
-                    return None;
-                }
-                let start = usize::from(std::mem::take(&mut self.skip_lf) && available[0] == b'\n');
-                let rest = &available[start..];
-                let found = memchr::memchr2(b'\n', b'\r', rest);
-                let take = found.unwrap_or(rest.len());
-                let room = self.options.max_line_len - self.buf.len();
-                if take > room {
-                    too_long = true;
-                }
-                self.buf.extend_from_slice(&rest[..take.min(room)]);
-                got_any |= take > 0;
-                Some(match found {
-                    Some(i) => {
-                        self.skip_lf = rest[i] == b'\r';
-                        (start + i + 1, true)
-                    }
-                    None => (start + take, false),
-                })
-            })?;
-            let Some((consumed, found)) = copied else {
+            let available = filled!(self.input, err => return Err(err));
+            if available.is_empty() {
                 return Ok(if got_any {
                     RawLine::Line { too_long }
                 } else {
                     RawLine::Eof
                 });
+            }
+            let start = usize::from(std::mem::take(&mut self.skip_lf) && available[0] == b'\n');
+            let rest = &available[start..];
+            let found = memchr::memchr2(b'\n', b'\r', rest);
+            let take = found.unwrap_or(rest.len());
+            let room = self.options.max_line_len - self.buf.len();
+            if take > room {
+                too_long = true;
+            }
+            self.buf.extend_from_slice(&rest[..take.min(room)]);
+            got_any |= take > 0;
+            let consumed = match found {
+                Some(i) => {
+                    self.skip_lf = rest[i] == b'\r';
+                    start + i + 1
+                }
+                None => start + take,
             };
             self.input.consume(consumed);
             self.bytes_consumed += consumed as u64;
-            if found {
+            if found.is_some() {
                 return Ok(RawLine::Line { too_long });
             }
-        }
-    }
-}
-
-/// Gives what `look` finds in the input's buffered bytes (read first if the buffer is empty),
-/// retrying an interrupted read. `look` gives a finding, not the bytes: returning the borrow out
-/// of the retry loop would keep the input borrowed on the retrying path too (the borrow checker's
-/// "NLL problem case 3"), and a finding lets the caller consume after the borrow ends.
-#[inline(always)]
-fn look_at_buffer<R: BufRead, T>(input: &mut R, look: impl FnOnce(&[u8]) -> T) -> io::Result<T> {
-    loop {
-        match input.fill_buf() {
-            Ok(available) => return Ok(look(available)),
-            Err(err) if err.kind() == io::ErrorKind::Interrupted => {}
-            Err(err) => return Err(err),
         }
     }
 }

@@ -11,7 +11,9 @@ fn cpu_ns() -> Option<u64> {
     text.split_whitespace().next()?.parse().ok()
 }
 
-fn main() {
+/// The corpus (the first argument's directory, else `../shared/corpus`) repeated to
+/// `THROUGHPUT_MB` megabytes (default 50); `None` when there is no corpus.
+fn input() -> Option<Vec<u8>> {
     let dir = std::env::args()
         .nth(1)
         .map(PathBuf::from)
@@ -29,9 +31,8 @@ fn main() {
     }
     if unit.is_empty() {
         eprintln!("no corpus in {}", dir.display());
-        return;
+        return None;
     }
-    // `THROUGHPUT_MB` sets the input size (default 50).
     let megabytes: usize = std::env::var("THROUGHPUT_MB")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -40,6 +41,13 @@ fn main() {
     while data.len() < megabytes << 20 {
         data.extend_from_slice(&unit);
     }
+    Some(data)
+}
+
+fn main() {
+    let Some(data) = input() else {
+        return;
+    };
     // `THROUGHPUT_ONLY=lex+interpret` runs one measurement (for profiling).
     let only = std::env::var("THROUGHPUT_ONLY").ok();
     let measure = |name: &str, run: &dyn Fn() -> usize| {

@@ -401,14 +401,21 @@ impl Lexer<'_, '_> {
     fn run(&mut self) -> Result<(), LexError> {
         self.skip_blanks();
         self.line_number()?;
+        self.rest_of_line(true)
+    }
+
+    /// The rest of the line: blanks and comments, and, where `code` may still come, a command
+    /// or a checksum.
+    #[inline(always)]
+    fn rest_of_line(&mut self, code: bool) -> Result<(), LexError> {
         loop {
             self.skip_blanks();
             match self.peek() {
                 None => return Ok(()),
                 Some(b';') => return self.semicolon_comment(),
                 Some(b'(') => self.paren_comment()?,
-                Some(b'*') => return self.checksum(),
-                Some(b) if b.is_ascii_alphabetic() || b == b'_' => return self.command(),
+                Some(b'*') if code => return self.checksum(),
+                Some(b) if code && (b.is_ascii_alphabetic() || b == b'_') => return self.command(),
                 Some(_) => return Err(self.unexpected_char()),
             }
         }
@@ -699,15 +706,7 @@ impl Lexer<'_, '_> {
     fn checksum(&mut self) -> Result<(), LexError> {
         let star = self.pos;
         self.checksum_at(star)?;
-        loop {
-            self.skip_blanks();
-            match self.peek() {
-                None => return Ok(()),
-                Some(b';') => return self.semicolon_comment(),
-                Some(b'(') => self.paren_comment()?,
-                Some(_) => return Err(self.unexpected_char()),
-            }
-        }
+        self.rest_of_line(false)
     }
 
     fn checksum_at(&mut self, star: usize) -> Result<(), LexError> {

@@ -22,6 +22,8 @@ pub mod meta;
 pub mod number;
 pub mod reader;
 pub mod stats;
+#[cfg(test)]
+mod test_input;
 pub mod writer;
 
 pub use command::{AccelParams, Arc, Command, Meta, Move, Position, Span, Spanned, VelocityLimit};

@@ -14,6 +14,23 @@ use crate::command::Span;
 use crate::error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
 use crate::lexer::{Line, LineTokens, lex_utf8_bytes, span_of, utf8};
 
+/// The input's buffered bytes (`fill_buf`, retried while interrupted); another read error goes to
+/// `$failed`, which must leave the function. A macro, not a function: a function returning the
+/// bytes from its retry loop would keep the input borrowed on the retrying path too (the borrow
+/// checker's "NLL problem case 3"), and one taking a closure made the fast path's per-line
+/// hand-over a few instructions longer.
+macro_rules! filled {
+    ($input:expr, $err:ident => $failed:expr) => {
+        loop {
+            match $input.fill_buf() {
+                Ok(bytes) => break bytes,
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
+                Err($err) => $failed,
+            }
+        }
+    };
+}
+
 /// Reader settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ReaderOptions {
@@ -224,16 +241,10 @@ impl<R: BufRead> Reader<R> {
             return None;
         }
         self.consume_deferred();
-        let available = loop {
-            match self.input.fill_buf() {
-                Ok(bytes) => break bytes,
-                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
-                Err(err) => {
-                    self.pending_io_error = Some(err);
-                    return None;
-                }
-            }
-        };
+        let available = filled!(self.input, err => {
+            self.pending_io_error = Some(err);
+            return None;
+        });
         let start = usize::from(self.skip_lf && available.first() == Some(&b'\n'));
         let offered_end = available.len().min(start.saturating_add(self.offer_len));
         let len = take(available.get(start..offered_end)?, self.line + 1)?;
@@ -262,16 +273,10 @@ impl<R: BufRead> Reader<R> {
         }
         self.consume_deferred();
         let offer_len = self.offer_len;
-        let available = loop {
-            match self.input.fill_buf() {
-                Ok(bytes) => break bytes,
-                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
-                Err(err) => {
-                    self.pending_io_error = Some(err);
-                    return 0;
-                }
-            }
-        };
+        let available = filled!(self.input, err => {
+            self.pending_io_error = Some(err);
+            return 0;
+        });
         let (mut pos, mut skip_lf, mut line) = (0, self.skip_lf, self.line);
         loop {
             let start = pos + usize::from(skip_lf && available.get(pos) == Some(&b'\n'));
@@ -308,13 +313,7 @@ impl<R: BufRead> Reader<R> {
 
     /// Finds the next line in the current input buffer without consuming it.
     fn locate_line(&mut self) -> io::Result<Located> {
-        let available = loop {
-            match self.input.fill_buf() {
-                Ok(bytes) => break bytes,
-                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
-                Err(err) => return Err(err),
-            }
-        };
+        let available = filled!(self.input, err => return Err(err));
         if available.is_empty() {
             return Ok(Located::Eof);
         }
@@ -351,11 +350,7 @@ impl<R: BufRead> Reader<R> {
         let mut got_any = false;
         let mut too_long = false;
         loop {
-            let available = match self.input.fill_buf() {
-                Ok(bytes) => bytes,
-                Err(err) if err.kind() == io::ErrorKind::Interrupted => continue,
-                Err(err) => return Err(err),
-            };
+            let available = filled!(self.input, err => return Err(err));
             if available.is_empty() {
                 return Ok(if got_any {
                     RawLine::Line { too_long }

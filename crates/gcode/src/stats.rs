@@ -461,6 +461,7 @@ fn stats_of(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_input::{each_corpus_file, gcode_lines};
 
     #[test]
     fn square_with_extrusion() {
@@ -526,48 +527,31 @@ mod tests {
 
     #[test]
     fn file_stats_on_the_corpus_as_the_general_path_gives() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus");
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            eprintln!("{} absent: skipped", dir.display());
-            return;
-        };
-        for path in entries.filter_map(Result::ok).map(|e| e.path()) {
-            let text = std::fs::read(&path).expect("corpus file reads");
-            let (fast, general) = both_paths(&text, 1 << 16);
+        each_corpus_file(|path, text| {
+            let (fast, general) = both_paths(text, 1 << 16);
             assert!(fast == general, "{}", path.display());
-        }
+        });
     }
 
     proptest::proptest! {
         #[test]
         fn file_stats_as_the_general_path_gives_on_any_lines(
-            lines in proptest::collection::vec(
-                (
-                    proptest::sample::select(vec![
-                        "G1", "G0", "g1", "G01", "G1.5", "G2", "G3", "g2", "G92", "g92 E-1",
-                        "G92.1", "G920", "M83", "M82", "G91", "G90", "G4 P1", "M104 S1",
-                        "SET_FAN_SPEED FAN=a", ";LAYER_CHANGE", ";Z:0.4", ";TYPE:Wall", "",
-                        "; c", "G1 ;c", ";LAYER:3", "; feature skirt", "G17", "G18",
-                    ]),
-                    proptest::collection::vec(
-                        proptest::sample::select(vec![
-                            " X1.5", " Y-2", " Z.3", " E0.5", " E-1.25", " F1800", " I1",
-                            " J-1", " X", " Q1", " ;c", "  ",
-                        ]),
-                        0..4,
-                    ),
-                    proptest::sample::select(vec!["\n", "\r\n", "\r"]),
-                ),
-                0..16,
+            text in gcode_lines(
+                vec![
+                    "G1", "G0", "g1", "G01", "G1.5", "G2", "G3", "g2", "G92", "g92 E-1",
+                    "G92.1", "G920", "M83", "M82", "G91", "G90", "G4 P1", "M104 S1",
+                    "SET_FAN_SPEED FAN=a", ";LAYER_CHANGE", ";Z:0.4", ";TYPE:Wall", "",
+                    "; c", "G1 ;c", ";LAYER:3", "; feature skirt", "G17", "G18",
+                ],
+                vec![
+                    " X1.5", " Y-2", " Z.3", " E0.5", " E-1.25", " F1800", " I1",
+                    " J-1", " X", " Q1", " ;c", "  ",
+                ],
+                4,
+                16,
             ),
             capacity in 1usize..48,
         ) {
-            let mut text = String::new();
-            for (command, words, end) in &lines {
-                text.push_str(command);
-                text.extend(words.iter().copied());
-                text.push_str(end);
-            }
             let (fast, general) = both_paths(text.as_bytes(), capacity);
             proptest::prop_assert_eq!(fast, general);
         }

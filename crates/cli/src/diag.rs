@@ -208,5 +208,11 @@ pub fn pipeline_error(file: &Path, e: printjob::PipelineError) -> miette::Report
             e.kind.to_string(),
             "this move".into(),
         )),
+        // Not the file's fault: an output could not take the moves.
+        printjob::PipelineError::Sink { span, error } => miette::miette!(
+            "{error} (stopped while planning {}:{})",
+            file.display(),
+            span.line
+        ),
     }
 }

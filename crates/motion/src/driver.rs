@@ -4,7 +4,7 @@ use crate::arcs::{MAX_ARC_CHORDS, chord_count, probe_points, split_arc};
 use crate::limits::VelocityLimits;
 use crate::toolhead::{MoveError, SlowMoves, Toolhead};
 use gcode::{AccelParams, Command, Span, Spanned, VelocityLimit};
-use trapq::MoveSink;
+use trapq::{MoveSink, SinkError};
 
 /// A command the planner could not carry out.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -141,10 +141,16 @@ impl<'k, S: MoveSink> Planner<'k, S> {
         self.toolhead.position()
     }
 
-    /// Finish planning: the sink, the final print time, the warnings and the moves slowed hard.
-    pub fn finish(self) -> (S, f64, Vec<Warning>, SlowMoves) {
-        let (sink, end, slow) = self.toolhead.finish();
-        (sink, end, self.warnings, slow)
+    /// Finish planning: the sink, the final print time, the warnings and the moves slowed hard; or the sink's
+    /// error when it failed.
+    pub fn finish(self) -> Result<(S, f64, Vec<Warning>, SlowMoves), SinkError> {
+        let (sink, end, slow) = self.toolhead.finish()?;
+        Ok((sink, end, self.warnings, slow))
+    }
+
+    /// The sink's error, once it has failed: planning should stop.
+    pub fn take_sink_error(&mut self) -> Option<SinkError> {
+        self.toolhead.take_sink_error()
     }
 
     /// Carry out one command. Returns the machine position when it differs from what the G-code interpreter

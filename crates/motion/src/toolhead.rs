@@ -6,7 +6,7 @@ use crate::kinematic_limits;
 use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use crate::lookahead::{BUFFER_TIME_HIGH, LookAhead, Move};
 use kinematics::{Kinematics, SegmentError};
-use trapq::{Motion, MoveSink, Queue, TrapezoidMove};
+use trapq::{Motion, MoveSink, Queue, SinkError, TrapezoidMove};
 
 /// Step generation lags at least this far behind "now" (Klipper's `MIN_KIN_TIME`).
 const MIN_KIN_TIME: f64 = 0.100;
@@ -77,6 +77,8 @@ pub struct Toolhead<'k, S: MoveSink> {
     limits: VelocityLimits,
     kinematics: &'k dyn Kinematics,
     sink: S,
+    /// The sink's first error: nothing more is handed to it, and the planner stops at the next command.
+    sink_error: Option<SinkError>,
     lookahead: LookAhead,
     commanded_pos: [f64; 4],
     print_time: f64,
@@ -124,6 +126,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             config,
             kinematics,
             sink,
+            sink_error: None,
             lookahead: LookAhead::new(),
             commanded_pos: [0.0; 4],
             bed_ray: [1.0, 0.0],
@@ -153,10 +156,27 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     }
 
     /// Finish: plan and hand over every queued move (a stop after the last one).
-    pub fn finish(mut self) -> (S, f64, SlowMoves) {
+    pub fn finish(mut self) -> Result<(S, f64, SlowMoves), SinkError> {
         self.flush_lookahead();
         self.sink.flush(self.print_time);
-        (self.sink, self.print_time, self.slow_moves)
+        match self.sink_error {
+            Some(e) => Err(e),
+            None => Ok((self.sink, self.print_time, self.slow_moves)),
+        }
+    }
+
+    /// The sink's error, once it has failed (taken: it is reported once).
+    pub fn take_sink_error(&mut self) -> Option<SinkError> {
+        self.sink_error.take()
+    }
+
+    /// Keeps a sink's first error; after it the sink is handed nothing more.
+    fn deliver(sink_error: &mut Option<SinkError>, result: Result<(), SinkError>) {
+        if let Err(e) = result
+            && sink_error.is_none()
+        {
+            *sink_error = Some(e);
+        }
     }
 
     /// Change velocity limits (`SET_VELOCITY_LIMIT`, `M204`); queued moves keep the limits they were made with.
@@ -349,8 +369,11 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let start = self.last_move_time();
         let centre = xyz(self.commanded_pos);
         let mv = TrapezoidMove::bed_turn(start, centre, angle, turn.max_velocity, turn.max_accel);
-        self.sink.origin(origin);
-        self.sink.append(Queue::Toolhead, &mv);
+        if self.sink_error.is_none() {
+            self.sink.origin(origin);
+            let result = self.sink.append(Queue::Toolhead, &mv);
+            Self::deliver(&mut self.sink_error, result);
+        }
         let end = start + mv.duration();
         self.print_time = end;
         self.note_motion_queued(end);
@@ -536,7 +559,10 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             }
             let mut next_move_time = self.print_time;
             for mv in self.lookahead.ready(count) {
-                emit(&mut self.sink, next_move_time, mv);
+                if self.sink_error.is_none() {
+                    let result = emit(&mut self.sink, next_move_time, mv);
+                    Self::deliver(&mut self.sink_error, result);
+                }
                 next_move_time =
                     next_move_time + mv.plan.accel_t + mv.plan.cruise_t + mv.plan.decel_t;
             }
@@ -549,7 +575,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
 }
 
 /// Hand a planned move's pieces to the sink: the toolhead's, and the extruder's when it extrudes.
-fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
+fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) -> Result<(), SinkError> {
     let plan = mv.plan;
     sink.origin(mv.origin);
     if mv.is_kinematic {
@@ -567,7 +593,7 @@ fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
                 accel: mv.accel,
                 motion: Motion::Travel,
             },
-        );
+        )?;
     }
     if mv.axes_d[3] != 0.0 {
         let e_ratio = mv.axes_r[3];
@@ -587,8 +613,9 @@ fn emit<S: MoveSink>(sink: &mut S, print_time: f64, mv: &Move) {
                 accel: mv.accel * e_ratio,
                 motion: Motion::Travel,
             },
-        );
+        )?;
     }
+    Ok(())
 }
 
 fn xyz(p: [f64; 4]) -> [f64; 3] {

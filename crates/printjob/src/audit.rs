@@ -116,10 +116,15 @@ struct Locator {
 }
 
 impl trapq::MoveSink for Locator {
-    fn append(&mut self, _queue: trapq::Queue, mv: &trapq::TrapezoidMove) {
+    fn append(
+        &mut self,
+        _queue: trapq::Queue,
+        mv: &trapq::TrapezoidMove,
+    ) -> Result<(), trapq::SinkError> {
         if mv.print_time <= self.time {
             self.found = Some(self.origin);
         }
+        Ok(())
     }
 
     fn origin(&mut self, origin: u64) {

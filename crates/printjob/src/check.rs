@@ -8,7 +8,7 @@ use gcode::Span;
 use motion::machine::MachineSetup;
 
 use crate::machine::{Machine, PlanOptions};
-use crate::plan::start;
+use crate::plan::{line_start, start};
 use crate::run::{RunError, RunOptions, run};
 
 /// One problem found by [`check_gcode`].
@@ -124,7 +124,10 @@ pub fn check_gcode(
     for w in commands.take_warnings() {
         report.push(Problem::at(w.span, Severity::Warning, w.message.clone()));
     }
-    let (_, end_time, warnings, slow) = planner.finish();
+    let (end_time, warnings, slow) = match planner.finish() {
+        Ok((_, end_time, warnings, slow)) => (end_time, warnings, slow),
+        Err(_) => unreachable!("the check's sink takes every move"),
+    };
     for w in warnings {
         report.push(Problem::at(w.span, Severity::Warning, w.message));
     }
@@ -145,15 +148,6 @@ pub fn check_gcode(
     report.end_time = end_time;
     report.slow_moves = slow.total;
     report
-}
-
-/// The start of G-code line `line`.
-pub(crate) fn line_start(line: u64) -> Span {
-    Span {
-        line,
-        column: 1,
-        len: 0,
-    }
 }
 
 /// For a check: the file's steps generated (not written) and audited as a run does, so that a check flags what a

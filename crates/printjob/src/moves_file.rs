@@ -4,8 +4,9 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use trapq::csv::CsvSink;
 use outfile::{OutputError, PendingFile, write_error};
+use trapq::SinkError;
+use trapq::csv::CsvSink;
 
 type Output = BufWriter<Box<dyn Write + Send>>;
 
@@ -54,7 +55,10 @@ impl MovesFile {
 }
 
 impl trapq::MoveSink for MovesFile {
-    fn append(&mut self, queue: trapq::Queue, mv: &trapq::TrapezoidMove) {
-        self.sink.append(queue, mv);
+    /// A write error names the file and stops the run.
+    fn append(&mut self, queue: trapq::Queue, mv: &trapq::TrapezoidMove) -> Result<(), SinkError> {
+        self.sink
+            .append(queue, mv)
+            .map_err(|e| SinkError::new(format!("cannot write {}: {e}", self.path.display())))
     }
 }

@@ -5,7 +5,7 @@ use std::io::BufRead;
 use gcode::{Commands, GcodeError};
 use motion::machine::MachineSetup;
 use motion::{PlanError, Planner, SlowMoves, Toolhead, Warning};
-use trapq::MoveSink;
+use trapq::{MoveSink, SinkError};
 
 /// Why planning stopped.
 #[derive(Debug, thiserror::Error)]
@@ -14,6 +14,10 @@ pub enum PipelineError {
     Gcode(#[from] GcodeError),
     #[error(transparent)]
     Plan(#[from] PlanError),
+    /// A consumer of the planned moves failed (a full disk, a motor whose steps could not be written) while
+    /// the line at `span` was planned; planning stopped there.
+    #[error("{error}")]
+    Sink { span: gcode::Span, error: SinkError },
 }
 
 impl PipelineError {
@@ -22,6 +26,7 @@ impl PipelineError {
         let span = match self {
             PipelineError::Gcode(e) => e.span,
             PipelineError::Plan(e) => e.span,
+            PipelineError::Sink { span, .. } => *span,
         };
         (span.line, span.column)
     }
@@ -31,6 +36,7 @@ impl PipelineError {
         match self {
             PipelineError::Gcode(e) => e.kind.to_string(),
             PipelineError::Plan(e) => e.kind.to_string(),
+            PipelineError::Sink { error, .. } => error.to_string(),
         }
     }
 }
@@ -100,9 +106,20 @@ pub fn plan_gcode<S: MoveSink>(
             }
             Err(e) => return Err(e.into()),
         }
+        if let Some(error) = planner.take_sink_error() {
+            return Err(PipelineError::Sink {
+                span: command.span,
+                error,
+            });
+        }
     }
     let gcode_warnings = commands.take_warnings();
-    let (sink, end_time, warnings, slow_moves) = planner.finish();
+    let last_line = commands.reader().line_number();
+    let (sink, end_time, warnings, slow_moves) =
+        planner.finish().map_err(|error| PipelineError::Sink {
+            span: line_start(last_line),
+            error,
+        })?;
     Ok((
         sink,
         PlanSummary {
@@ -112,4 +129,13 @@ pub fn plan_gcode<S: MoveSink>(
             slow_moves,
         },
     ))
+}
+
+/// The start of G-code line `line`.
+pub(crate) fn line_start(line: u64) -> gcode::Span {
+    gcode::Span {
+        line,
+        column: 1,
+        len: 0,
+    }
 }

@@ -320,6 +320,10 @@ impl StepSink for MotorSink {
             file.steps(clocks, dir);
         }
     }
+
+    fn take_error(&mut self) -> Option<String> {
+        self.file.as_mut()?.take_error()
+    }
 }
 
 /// Counts planned moves on the way through.
@@ -330,10 +334,15 @@ struct MoveCounter {
 }
 
 impl trapq::MoveSink for MoveCounter {
-    fn append(&mut self, queue: trapq::Queue, _mv: &trapq::TrapezoidMove) {
+    fn append(
+        &mut self,
+        queue: trapq::Queue,
+        _mv: &trapq::TrapezoidMove,
+    ) -> Result<(), trapq::SinkError> {
         match queue {
             trapq::Queue::Toolhead => self.toolhead += 1,
             trapq::Queue::Extruder => self.extruder += 1,
         }
+        Ok(())
     }
 }

@@ -18,11 +18,11 @@ use crate::metrics::{Analysis, DeviationStats, LayerStats, PathPoint, Sample, se
 use crate::motor::MotorTrack;
 use kinematics::Kinematics;
 use motion::machine::MachineSetup;
-use printjob::plan_gcode;
+use printjob::{PipelineError, plan_gcode};
 use std::collections::VecDeque;
 use std::io::BufRead;
 use stepgen::{Step, StepGenConfig, StepGenerator};
-use trapq::{MoveSink, Piece, Queue, TrapezoidMove, Vec3};
+use trapq::{MoveSink, Piece, Queue, SinkError, TrapezoidMove, Vec3};
 
 /// Extra path length searched for the nearest intended point beyond twice the time error (mm).
 const PATH_REACH_MARGIN: f64 = 0.1;
@@ -100,7 +100,8 @@ pub fn replay(
         )));
     }
     let recorder = Recorder::new(believed_kin, actual, *options);
-    let (recorder, summary) = plan_gcode(believed, gcode, source_name, recorder)?;
+    let (recorder, summary) =
+        plan_gcode(believed, gcode, source_name, recorder).map_err(simulation_error)?;
     let mut replay = recorder.finish()?;
     replay.end_time = summary.end_time;
     replay.warnings = summary
@@ -487,7 +488,28 @@ impl<'k> Recorder<'k> {
 }
 
 impl MoveSink for Recorder<'_> {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
+    /// A simulation error stops planning; it travels inside the sink error, typed ([`simulation_error`]).
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
+        self.take(queue, mv);
+        match self.error.take() {
+            Some(e) => Err(SinkError::new(e)),
+            None => Ok(()),
+        }
+    }
+
+    fn set_position(&mut self, xyz: Vec3, _e: f64) {
+        if self.error.is_some() {
+            return;
+        }
+        let result = self.flush_all().and_then(|()| self.start_at(xyz));
+        if let Err(e) = result {
+            self.fail(e);
+        }
+    }
+}
+
+impl Recorder<'_> {
+    fn take(&mut self, queue: Queue, mv: &TrapezoidMove) {
         if self.error.is_some() {
             return;
         }
@@ -512,15 +534,17 @@ impl MoveSink for Recorder<'_> {
             Queue::Extruder => mv.pieces().for_each(|p| self.extruder.push(p)),
         }
     }
+}
 
-    fn set_position(&mut self, xyz: Vec3, _e: f64) {
-        if self.error.is_some() {
-            return;
-        }
-        let result = self.flush_all().and_then(|()| self.start_at(xyz));
-        if let Err(e) = result {
-            self.fail(e);
-        }
+/// A planning error, with the recorder's own error taken back out of a sink error.
+fn simulation_error(e: PipelineError) -> SimulationError {
+    match e {
+        PipelineError::Sink { error, .. } => match error.into_inner().downcast::<SimulationError>()
+        {
+            Ok(e) => *e,
+            Err(other) => SimulationError::Machine(other.to_string()),
+        },
+        other => SimulationError::Plan(other),
     }
 }
 

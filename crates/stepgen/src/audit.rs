@@ -134,7 +134,11 @@ impl<'k> ExpectedTravel<'k> {
 }
 
 impl trapq::MoveSink for ExpectedTravel<'_> {
-    fn append(&mut self, queue: trapq::Queue, mv: &trapq::TrapezoidMove) {
+    fn append(
+        &mut self,
+        queue: trapq::Queue,
+        mv: &trapq::TrapezoidMove,
+    ) -> Result<(), trapq::SinkError> {
         match queue {
             trapq::Queue::Toolhead => {
                 self.stretch_start.get_or_insert(mv.start_pos);
@@ -147,6 +151,7 @@ impl trapq::MoveSink for ExpectedTravel<'_> {
                 }
             }
         }
+        Ok(())
     }
 
     fn set_position(&mut self, xyz: Vec3, _e: f64) {

@@ -31,6 +31,9 @@ pub enum StepError {
     /// A motor index, queue or count does not match the machine.
     #[error("configuration mismatch: {0}")]
     Config(String),
+    /// A motor's sink could not take its steps (a step file on a full disk); the run stops there.
+    #[error("{0}")]
+    Output(String),
     /// The caller asked to stop.
     #[error("step generation was cancelled")]
     Cancelled,

@@ -6,7 +6,7 @@ use kinematics::{Kinematics, Vec3};
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
-use trapq::{MoveSink, Piece, Queue, TrapezoidMove};
+use trapq::{MoveSink, Piece, Queue, SinkError, TrapezoidMove};
 
 use crate::error::StepError;
 use crate::generator::{
@@ -100,6 +100,8 @@ impl<'k, S: StepSink + Send> StepPipeline<'k, S> {
         };
         if let Err(e) = generator.run_chunk(toolhead, extruder, &mut self.sinks) {
             self.error = Some(e);
+        } else if let Some(message) = self.sinks.iter_mut().find_map(StepSink::take_error) {
+            self.error = Some(StepError::Output(message));
         }
     }
 
@@ -116,7 +118,8 @@ impl<'k, S: StepSink + Send> StepPipeline<'k, S> {
 }
 
 impl<S: StepSink + Send> MoveSink for StepPipeline<'_, S> {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
+    /// Fails once stepping has failed (the step error itself is [`StepPipeline::finish`]'s), so planning stops.
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
         let buffer = match queue {
             Queue::Toolhead => &mut self.toolhead,
             Queue::Extruder => &mut self.extruder_pieces,
@@ -124,6 +127,10 @@ impl<S: StepSink + Send> MoveSink for StepPipeline<'_, S> {
         buffer.extend(mv.pieces());
         if buffer.len() >= CHUNK_PIECES {
             self.run_buffered();
+        }
+        match &self.error {
+            Some(e) => Err(SinkError::new(e.to_string())),
+            None => Ok(()),
         }
     }
 
@@ -229,7 +236,8 @@ impl Drop for ChunkSender {
 }
 
 impl MoveSink for ChunkSender {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
+    /// Fails once a motor has stopped (its error is [`run_in_parallel`]'s), so planning stops.
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
         let buffer = match queue {
             Queue::Toolhead => &mut self.buffer.toolhead,
             Queue::Extruder => &mut self.buffer.extruder,
@@ -237,6 +245,10 @@ impl MoveSink for ChunkSender {
         buffer.extend(mv.pieces());
         if buffer.len() >= CHUNK_PIECES {
             self.send_buffered();
+        }
+        match self.closed {
+            true => Err(SinkError::new("a motor's step generation stopped")),
+            false => Ok(()),
         }
     }
 
@@ -293,6 +305,9 @@ impl<S: StepSink> MotorThread<'_, S> {
             match message {
                 Message::Chunk(chunk) => self.step_chunk(&chunk).map_err(fail)?,
                 Message::SetPosition { xyz, e } => self.restart(xyz, e).map_err(fail)?,
+            }
+            if let Some(message) = self.sink.take_error() {
+                return Err(fail(StepError::Output(message)));
             }
         }
         self.finish_stepper();

@@ -19,6 +19,12 @@ pub trait StepSink {
             self.step(clock, dir);
         }
     }
+
+    /// The error the sink met, if any. Asked between chunks of work, not per step (a
+    /// `Result` per step would cost the hot loop), so a failed sink stops its motor, and the run, early.
+    fn take_error(&mut self) -> Option<String> {
+        None
+    }
 }
 
 impl StepSink for Vec<Step> {
@@ -37,6 +43,10 @@ impl<S: StepSink + ?Sized> StepSink for &mut S {
     #[inline]
     fn steps(&mut self, clocks: &[u64], dir: bool) {
         (**self).steps(clocks, dir);
+    }
+
+    fn take_error(&mut self) -> Option<String> {
+        (**self).take_error()
     }
 }
 
@@ -72,5 +82,9 @@ impl<A: StepSink, B: StepSink> StepSink for Tee<A, B> {
     fn steps(&mut self, clocks: &[u64], dir: bool) {
         self.0.steps(clocks, dir);
         self.1.steps(clocks, dir);
+    }
+
+    fn take_error(&mut self) -> Option<String> {
+        self.0.take_error().or_else(|| self.1.take_error())
     }
 }

@@ -109,6 +109,12 @@ impl StepSink for StepFileWriter {
             self.error = Some(e);
         }
     }
+
+    /// A write error, named with the file (the writer keeps nothing after it: [`StepFileWriter::finish`] fails).
+    fn take_error(&mut self) -> Option<String> {
+        let e = self.error.as_ref()?;
+        Some(format!("cannot write {}: {e}", self.path.display()))
+    }
 }
 
 /// Read a step file (`clock dir` per line; gzip if the name ends in `.gz`).

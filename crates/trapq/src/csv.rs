@@ -7,7 +7,7 @@
 use std::fmt;
 use std::io::{self, BufRead, Write};
 
-use crate::{Motion, MoveSink, Queue, TrapezoidMove};
+use crate::{Motion, MoveSink, Queue, SinkError, TrapezoidMove};
 
 /// The header row: the queue's name, then the numbers of [`row_values`] in their order.
 pub const HEADER: &str = "trapq,print_time,accel_t,cruise_t,decel_t,start_x,start_y,start_z,axes_r_x,axes_r_y,axes_r_z,start_v,cruise_v,accel";
@@ -117,7 +117,7 @@ impl<W: Write> CsvSink<W> {
         CsvSink { out, error }
     }
 
-    /// The writer, or the first write error.
+    /// The writer, or the header's write error (a row's is the error of its `append`).
     pub fn finish(mut self) -> io::Result<W> {
         if let Some(e) = self.error.take() {
             return Err(e);
@@ -128,9 +128,9 @@ impl<W: Write> CsvSink<W> {
 }
 
 impl<W: Write> MoveSink for CsvSink<W> {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
-        if self.error.is_some() {
-            return;
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
+        if let Some(e) = self.error.take() {
+            return Err(SinkError::new(e));
         }
         let mut line = String::with_capacity(256);
         line.push_str(queue_name(queue));
@@ -138,9 +138,7 @@ impl<W: Write> MoveSink for CsvSink<W> {
             line.push(',');
             line.push_str(&python_float(v));
         }
-        if let Err(e) = writeln!(self.out, "{line}") {
-            self.error = Some(e);
-        }
+        writeln!(self.out, "{line}").map_err(SinkError::new)
     }
 }
 
@@ -288,9 +286,42 @@ mod tests {
         let row = "toolhead,0.25,0.12963624321753373,0.0,0.11296957655086703,300.0,0.0,0.5,0.0,0.0,1.0,0.0,3.8890872965260113,30.0";
         let (queue, mv) = parse_row(row).expect("parses");
         let mut sink = CsvSink::new(Vec::new());
-        sink.append(queue, &mv);
+        sink.append(queue, &mv).expect("writes");
         let text = String::from_utf8(sink.finish().expect("writes")).expect("utf8");
         assert_eq!(text.lines().nth(1), Some(row));
+    }
+
+    /// A writer with room for `room` bytes (a full disk after that).
+    struct Full {
+        room: usize,
+    }
+
+    impl Write for Full {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            if buf.len() > self.room {
+                return Err(io::Error::other("no space left on device"));
+            }
+            self.room -= buf.len();
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_full_disk_stops_the_sink_at_the_row_that_did_not_fit() {
+        let row = "toolhead,0.25,0.1,0.0,0.1,300.0,0.0,0.5,0.0,0.0,1.0,0.0,3.9,30.0";
+        let (queue, mv) = parse_row(row).expect("parses");
+        let mut sink = CsvSink::new(Full {
+            room: HEADER.len() + 1 + 70,
+        });
+        assert!(sink.append(queue, &mv).is_ok());
+        let err = sink.append(queue, &mv).expect_err("full");
+        assert_eq!(err.to_string(), "no space left on device");
+        // No room even for the header: the first row says so.
+        let mut sink = CsvSink::new(Full { room: 3 });
+        assert!(sink.append(queue, &mv).is_err());
     }
 
     #[test]

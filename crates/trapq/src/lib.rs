@@ -214,12 +214,41 @@ pub enum Queue {
     Extruder,
 }
 
+/// Why a sink could not take a move (a full disk, a consumer that has stopped): the run stops there, and the
+/// planner hands the error on.
+#[derive(Debug)]
+pub struct SinkError(Box<dyn std::error::Error + Send + Sync>);
+
+impl SinkError {
+    pub fn new(error: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> SinkError {
+        SinkError(error.into())
+    }
+
+    /// The error the sink met.
+    pub fn into_inner(self) -> Box<dyn std::error::Error + Send + Sync> {
+        self.0
+    }
+}
+
+impl std::fmt::Display for SinkError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for SinkError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.0.source()
+    }
+}
+
 /// Receiver of planned moves, in print-time order per queue.
 ///
-/// The planner does not know who consumes its output (step generation, a CSV writer, the simulator).
+/// The planner does not know who consumes its output (step generation, a CSV writer, the simulator). A sink that
+/// cannot go on says so with an error; the planner stops there (as ripgrep's `Sink` stops a search).
 pub trait MoveSink {
     /// A planned move was appended to `queue`.
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove);
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError>;
     /// The moves appended next come from `origin` (a G-code line), until the next call. Sinks that report
     /// places keep it; the rest ignore it.
     #[inline]
@@ -231,22 +260,27 @@ pub trait MoveSink {
     fn set_position(&mut self, _xyz: Vec3, _e: f64) {}
 }
 
+/// A closure that takes every move and never fails (tests, quick collectors).
 impl<F: FnMut(Queue, &TrapezoidMove)> MoveSink for F {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
-        self(queue, mv)
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
+        self(queue, mv);
+        Ok(())
     }
 }
 
 /// A consumer that ignores everything (planning for its own sake: checks, timing).
 impl MoveSink for () {
-    fn append(&mut self, _queue: Queue, _mv: &TrapezoidMove) {}
+    fn append(&mut self, _queue: Queue, _mv: &TrapezoidMove) -> Result<(), SinkError> {
+        Ok(())
+    }
 }
 
 /// An optional consumer: `None` ignores everything.
 impl<S: MoveSink> MoveSink for Option<S> {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
-        if let Some(sink) = self {
-            sink.append(queue, mv);
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
+        match self {
+            Some(sink) => sink.append(queue, mv),
+            None => Ok(()),
         }
     }
     fn origin(&mut self, origin: u64) {
@@ -268,9 +302,9 @@ impl<S: MoveSink> MoveSink for Option<S> {
 
 /// Two consumers fed the same moves, in order.
 impl<A: MoveSink, B: MoveSink> MoveSink for (A, B) {
-    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) {
-        self.0.append(queue, mv);
-        self.1.append(queue, mv);
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
+        self.0.append(queue, mv)?;
+        self.1.append(queue, mv)
     }
     #[inline]
     fn origin(&mut self, origin: u64) {

@@ -1,5 +1,6 @@
 //! Integration tests of the `jointspace` binary: the bad-input catalogue, limits that must hold (memory,
-//! time, determinism, interruption) and fuzz regressions. Every test runs the built binary as a user would.
+//! time, determinism, interruption) and fuzz regressions, each running the built binary as a user would; and the
+//! tree's structural invariants (`structure.rs`).
 
 mod catalogue;
 mod check;
@@ -11,3 +12,4 @@ mod interrupt;
 mod json;
 mod limits;
 mod output;
+mod structure;

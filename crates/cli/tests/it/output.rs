@@ -454,3 +454,43 @@ fn a_map_needs_no_endstops() {
         "{stderr}"
     );
 }
+
+/// A full disk under an output stops the run where it happens, with the error, not after planning the whole file:
+/// the moves CSV to standard output on `/dev/full` (every write fails with "No space left on device").
+#[test]
+#[cfg(target_os = "linux")]
+fn a_full_output_stops_the_run_early_with_its_error() {
+    let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+        eprintln!("SKIPPED: no /dev/full here");
+        return;
+    };
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("print.gcode");
+    let lines = 200_000;
+    let text: String = (0..lines)
+        .map(|i| format!("G1 X{} Y{} F6000\n", 10 + i % 50, 10 + (i / 50) % 50))
+        .collect();
+    std::fs::write(&input, text).expect("write input");
+    let output = Command::new(binary())
+        .args(["run", "--moves", "-", "-c"])
+        .arg(example_machine("cartesian"))
+        .arg(&input)
+        .stdout(full)
+        .stderr(Stdio::piped())
+        .output()
+        .expect("run jointspace");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("No space left on device"), "{stderr}");
+    // The line where planning stopped: within the first few thousand of 200,000.
+    let stopped_at: u64 = stderr
+        .split("print.gcode:")
+        .nth(1)
+        .and_then(|rest| rest.split(|c: char| !c.is_ascii_digit()).next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no stopping line in: {stderr}"));
+    assert!(
+        stopped_at < 5_000,
+        "stopped only at line {stopped_at}: {stderr}"
+    );
+}

@@ -88,8 +88,8 @@ fn compare_case(case: &Path) -> Result<usize, String> {
         if mismatch {
             let mut text = Vec::new();
             let mut sink = CsvSink::new(&mut text);
-            trapq::MoveSink::append(&mut sink, *eq, e);
-            trapq::MoveSink::append(&mut sink, *gq, g);
+            trapq::MoveSink::append(&mut sink, *eq, e).expect("the sink takes the move");
+            trapq::MoveSink::append(&mut sink, *gq, g).expect("the sink takes the move");
             drop(sink);
             return Err(format!(
                 "{}: row {} differs (expected, then ours):\n{}",

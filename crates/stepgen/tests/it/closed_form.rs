@@ -309,14 +309,18 @@ fn pipeline_writes_step_files_and_statistics() {
     assert_eq!(pipeline.motor_names(), names);
     pipeline.set_position([0.0; 3], 0.0);
     // 1 mm along X at 10 mm/s (80 steps 0.00125 s apart), then 1 mm back.
-    pipeline.append(
-        Queue::Toolhead,
-        &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
-    );
-    pipeline.append(
-        Queue::Toolhead,
-        &cruise(1.1, 0.1, [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 10.0),
-    );
+    pipeline
+        .append(
+            Queue::Toolhead,
+            &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+        )
+        .expect("the sink takes the move");
+    pipeline
+        .append(
+            Queue::Toolhead,
+            &cruise(1.1, 0.1, [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], 10.0),
+        )
+        .expect("the sink takes the move");
     let (sinks, filtered) = pipeline.finish().expect("steps");
     let stats = stepgen::finish_step_files(&names, sinks, &filtered, HZ).expect("files written");
     let (name, x) = &stats[0];
@@ -343,10 +347,12 @@ fn pipeline_restarts_motors_at_a_declared_position() {
         vec![Vec::new(); 3],
     );
     // Moves before any declared pose are an error at the end.
-    pipeline.append(
-        Queue::Toolhead,
-        &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
-    );
+    pipeline
+        .append(
+            Queue::Toolhead,
+            &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+        )
+        .expect("the sink takes the move");
     assert!(matches!(pipeline.finish(), Err(StepError::NoStartPose)));
 
     let mut pipeline = stepgen::StepPipeline::new(
@@ -356,16 +362,20 @@ fn pipeline_restarts_motors_at_a_declared_position() {
         vec![Vec::new(); 3],
     );
     pipeline.set_position([0.0; 3], 0.0);
-    pipeline.append(
-        Queue::Toolhead,
-        &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
-    );
+    pipeline
+        .append(
+            Queue::Toolhead,
+            &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
+        )
+        .expect("the sink takes the move");
     // X is declared to be 5 (no motion), then moves on from there: no burst of steps for the jump.
     pipeline.set_position([5.0, 0.0, 0.0], 0.0);
-    pipeline.append(
-        Queue::Toolhead,
-        &cruise(2.0, 0.1, [5.0, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0),
-    );
+    pipeline
+        .append(
+            Queue::Toolhead,
+            &cruise(2.0, 0.1, [5.0, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0),
+        )
+        .expect("the sink takes the move");
     let (sinks, _) = pipeline.finish().expect("steps");
     assert_eq!(sinks[0].len(), 160);
     assert!(sinks[0].iter().all(|s| s.dir));
@@ -462,11 +472,11 @@ fn threaded_pipeline_gives_the_sequential_pipelines_steps() {
     let feed = |sink: &mut dyn MoveSink| {
         sink.set_position([30.0, 0.0, 0.0], 0.0);
         for (queue, mv) in first_half {
-            sink.append(*queue, mv);
+            sink.append(*queue, mv).expect("the sink takes the move");
         }
         sink.set_position(restart.0, restart.1);
         for (queue, mv) in second_half {
-            sink.append(*queue, mv);
+            sink.append(*queue, mv).expect("the sink takes the move");
         }
     };
     let (sequential, threaded) = sequential_and_threaded(kin.as_ref(), &extruder, feed);
@@ -481,6 +491,65 @@ fn threaded_pipeline_gives_the_sequential_pipelines_steps() {
     assert!([0, 1, 3].iter().all(|&motor| !expected[motor].is_empty()));
     assert_eq!(threaded, expected);
     assert_eq!(pairs, expected_pairs);
+}
+
+/// Records steps until a given count, then fails as a full disk would.
+#[derive(Debug)]
+struct FailingSink {
+    steps: u64,
+    room: u64,
+}
+
+impl stepgen::StepSink for FailingSink {
+    fn step(&mut self, _clock: u64, _dir: bool) {
+        self.steps += 1;
+    }
+
+    fn take_error(&mut self) -> Option<String> {
+        (self.steps > self.room).then(|| "no space left on device".to_string())
+    }
+}
+
+/// A sink that fails stops its motor and, through the planner's sink, the planning: the moves fed after the
+/// failure are refused, and the run's error is the sink's.
+#[test]
+fn a_failing_step_sink_stops_the_run_early() {
+    use trapq::MoveSink;
+    let kin = machines::cartesian(0.0125, 0.0125, 0.0025);
+    let sinks = (0..3)
+        .map(|_| FailingSink {
+            steps: 0,
+            room: 1000,
+        })
+        .collect();
+    let mut fed = 0;
+    let result = stepgen::run_in_parallel(
+        kin.as_ref(),
+        None,
+        StepGenConfig::default(),
+        sinks,
+        || false,
+        |mut sender| {
+            sender.set_position([0.0; 3], 0.0);
+            // 10 mm per move back and forth in X: 800 X steps a move; a million moves if nothing stopped it.
+            for i in 0..1_000_000 {
+                let (start, dir) = match i % 2 {
+                    0 => ([0.0; 3], [1.0, 0.0, 0.0]),
+                    _ => ([10.0, 0.0, 0.0], [-1.0, 0.0, 0.0]),
+                };
+                let mv = cruise(1.0 + 0.1 * f64::from(i), 0.1, start, dir, 100.0);
+                if sender.append(Queue::Toolhead, &mv).is_err() {
+                    break;
+                }
+                fed += 1;
+            }
+        },
+    );
+    assert!(
+        matches!(&result, Err(StepError::Output(m)) if m == "no space left on device"),
+        "{result:?}"
+    );
+    assert!(fed < 100_000, "planning went on for {fed} moves");
 }
 
 #[test]
@@ -531,14 +600,15 @@ fn threaded_pipeline_reports_the_earliest_failure() {
     };
     let feed = |sink: &mut dyn MoveSink| {
         sink.set_position([0.0; 3], 0.0);
-        // Only the extruder fails here (its piece starts at a non-finite position)…
-        sink.append(
+        // Only the extruder fails here (its piece starts at a non-finite position)… (Once a motor has failed
+        // the sink may refuse further moves; the moves are fed on regardless, as a planner that did not stop.)
+        let _ = sink.append(
             Queue::Extruder,
             &cruise(1.0, 0.1, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], 1.0),
         );
         sink.set_position([0.0; 3], 0.0);
         // …and the toolhead motors only later.
-        sink.append(
+        let _ = sink.append(
             Queue::Toolhead,
             &cruise(2.0, 0.1, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], 10.0),
         );

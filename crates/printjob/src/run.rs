@@ -9,8 +9,8 @@ use kinematics::Kinematics;
 use motion::machine::SetupError;
 use serde::Serialize;
 use stepgen::{
-    ExpectedTravel, ExtruderSpec, MotorStats, StepFileError, StepFileWriter, StepGenConfig,
-    StepSink, StepStats,
+    ExpectedTravel, ExtruderSpec, FileAndStats, MotorStats, StepFileError, StepFileWriter,
+    StepGenConfig, StepStats, Tee,
 };
 
 use crate::audit::{AuditedMotor, StepStreamError, first_problem, period_of};
@@ -183,7 +183,7 @@ impl<'a> Motors<'a> {
     }
 
     /// One sink per motor: statistics with the step audit, and the step file when asked for one.
-    fn sinks(&self, options: &RunOptions) -> Result<Vec<MotorSink>, RunError> {
+    fn sinks(&self, options: &RunOptions) -> Result<Vec<FileAndStats>, RunError> {
         if let Some(dir) = &options.steps {
             std::fs::create_dir_all(dir).map_err(|source| outfile::OutputError::CreateDir {
                 path: dir.clone(),
@@ -201,10 +201,10 @@ impl<'a> Motors<'a> {
                 None => None,
             };
             let max_rate = self.machine.config.max_step_rate(name);
-            sinks.push(MotorSink {
-                stats: StepStats::new(options.clock_hz).audited(max_rate),
+            sinks.push(Tee(
+                StepStats::new(options.clock_hz).audited(max_rate),
                 file,
-            });
+            ));
         }
         Ok(sinks)
     }
@@ -212,7 +212,7 @@ impl<'a> Motors<'a> {
     /// Every motor's stream through the audit: the first problem is the run's error.
     fn audit(
         &self,
-        sinks: &[MotorSink],
+        sinks: &[FileAndStats],
         kin: &dyn Kinematics,
         (travel, stretches): (Vec<Option<f64>>, u32),
         clock_hz: f64,
@@ -229,10 +229,10 @@ impl<'a> Motors<'a> {
             .zip(travel)
             .enumerate()
             .map(|(i, (((sink, name), step_distance), expected_travel))| {
-                let stats = sink.stats.summary(clock_hz, 0);
+                let stats = sink.0.summary(clock_hz, 0);
                 AuditedMotor {
                     name,
-                    problem: sink.stats.problem(),
+                    problem: sink.0.problem(),
                     net_steps: stats.net_steps,
                     step_distance,
                     period: period_of(kin, i),
@@ -248,16 +248,17 @@ impl<'a> Motors<'a> {
     /// Each motor's step file finished, and its summary.
     fn finish(
         &self,
-        sinks: Vec<MotorSink>,
+        sinks: Vec<FileAndStats>,
         filtered: Vec<u64>,
         clock_hz: f64,
     ) -> Result<Vec<MotorSummary>, RunError> {
         let mut motors = Vec::with_capacity(sinks.len());
         for ((sink, name), filtered_pairs) in sinks.into_iter().zip(&self.names).zip(filtered) {
-            if let Some(file) = sink.file {
+            let Tee(stats, file) = sink;
+            if let Some(file) = file {
                 file.finish()?;
             }
-            let stats: MotorStats = sink.stats.summary(clock_hz, filtered_pairs);
+            let stats: MotorStats = stats.summary(clock_hz, filtered_pairs);
             let limit = self.machine.config.max_step_rate(name);
             motors.push(MotorSummary {
                 name: name.clone(),
@@ -295,35 +296,6 @@ fn warning_lines(summary: &PlanSummary) -> Vec<WarningLine> {
         .collect();
     warnings.sort_by_key(|w| (w.line, w.column));
     warnings
-}
-
-/// One motor's sink: statistics, plus its step file when asked for.
-#[derive(Debug)]
-struct MotorSink {
-    stats: StepStats,
-    file: Option<StepFileWriter>,
-}
-
-impl StepSink for MotorSink {
-    #[inline]
-    fn step(&mut self, clock: u64, dir: bool) {
-        self.stats.step(clock, dir);
-        if let Some(file) = &mut self.file {
-            file.step(clock, dir);
-        }
-    }
-
-    #[inline]
-    fn steps(&mut self, clocks: &[u64], dir: bool) {
-        self.stats.steps(clocks, dir);
-        if let Some(file) = &mut self.file {
-            file.steps(clocks, dir);
-        }
-    }
-
-    fn take_error(&mut self) -> Option<String> {
-        self.file.as_mut()?.take_error()
-    }
 }
 
 /// Counts planned moves on the way through.

@@ -8,8 +8,8 @@ use crate::sink::Tee;
 use crate::stats::{MotorStats, StepStats};
 use crate::writer::StepFileWriter;
 
-/// A step file writer plus statistics for one motor.
-pub type FileAndStats = Tee<StepFileWriter, StepStats>;
+/// Statistics for one motor, plus its step file when one is written.
+pub type FileAndStats = Tee<StepStats, Option<StepFileWriter>>;
 
 /// One sink per motor name writing `dir/<name>.txt` (or `.txt.gz`) and collecting statistics.
 pub fn step_file_sinks(
@@ -23,7 +23,7 @@ pub fn step_file_sinks(
         .iter()
         .map(|name| {
             let writer = StepFileWriter::create(dir.join(format!("{name}.{extension}")))?;
-            Ok(Tee(writer, StepStats::new(clock_hz)))
+            Ok(Tee(StepStats::new(clock_hz), Some(writer)))
         })
         .collect()
 }
@@ -37,8 +37,10 @@ pub fn finish_step_files(
     clock_hz: f64,
 ) -> Result<Vec<(String, MotorStats)>, StepFileError> {
     let mut stats = Vec::with_capacity(sinks.len());
-    for (index, Tee(writer, collected)) in sinks.into_iter().enumerate() {
-        writer.finish()?;
+    for (index, Tee(collected, writer)) in sinks.into_iter().enumerate() {
+        if let Some(writer) = writer {
+            writer.finish()?;
+        }
         let name = names
             .get(index)
             .cloned()

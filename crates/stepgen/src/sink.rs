@@ -50,6 +50,27 @@ impl<S: StepSink + ?Sized> StepSink for &mut S {
     }
 }
 
+/// An optional sink: `None` takes the steps and drops them.
+impl<S: StepSink> StepSink for Option<S> {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        if let Some(sink) = self {
+            sink.step(clock, dir);
+        }
+    }
+
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        if let Some(sink) = self {
+            sink.steps(clocks, dir);
+        }
+    }
+
+    fn take_error(&mut self) -> Option<String> {
+        self.as_mut()?.take_error()
+    }
+}
+
 /// Counts steps and keeps the net position change; for benchmarks and quick checks.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct CountSink {

@@ -73,17 +73,21 @@ fn outline_layer(outline: Outline) -> Layer {
     }
 }
 
-/// The reach map figure.
-pub fn reach_figure(data: &WorkspaceData) -> Result<Figure, PlotError> {
-    let cells = data.reach.iter().map(|&i| Some(i)).collect();
-    let grid = Grid::new(
+/// `cells` on the map's grid.
+fn map_grid<T>(data: &WorkspaceData, cells: Vec<Option<T>>) -> Result<Grid<T>, PlotError> {
+    Grid::new(
         data.x_min,
         data.y_min,
         data.cell_mm,
         data.nx,
         data.ny,
         cells,
-    )?;
+    )
+}
+
+/// The reach map figure.
+pub fn reach_figure(data: &WorkspaceData) -> Result<Figure, PlotError> {
+    let grid = map_grid(data, data.reach.iter().map(|&i| Some(i)).collect())?;
     let palette: Vec<Rgb> = (0..data.reach_labels.len())
         .map(|i| REACH_PALETTE[i % REACH_PALETTE.len()])
         .collect();
@@ -109,14 +113,7 @@ pub fn resolution_figure(
     data: &WorkspaceData,
     layer: &ResolutionLayer,
 ) -> Result<Figure, PlotError> {
-    let grid = Grid::new(
-        data.x_min,
-        data.y_min,
-        data.cell_mm,
-        data.nx,
-        data.ny,
-        layer.values.clone(),
-    )?;
+    let grid = map_grid(data, layer.values.clone())?;
     let values = || layer.values.iter().flatten().copied();
     let scale = ColourScale::fit(values(), "mm per step");
     let (lo, hi) = values().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {

@@ -193,11 +193,7 @@ impl<'a> Motors<'a> {
         let mut sinks = Vec::with_capacity(self.names.len());
         for name in &self.names {
             let file = match &options.steps {
-                Some(dir) => {
-                    let path = dir.join(format!("{name}.txt"));
-                    outfile::refuse_input(&path)?;
-                    Some(StepFileWriter::create(path)?)
-                }
+                Some(dir) => Some(StepFileWriter::create(dir.join(format!("{name}.txt")))?),
                 None => None,
             };
             let max_rate = self.machine.config.max_step_rate(name);

@@ -46,6 +46,9 @@ pub enum StepError {
 /// in the file (1-based line and column) and what is wrong there.
 #[derive(Debug, thiserror::Error)]
 pub enum FileError {
+    /// The output could not be created or put in place (or it is an input of the run).
+    #[error(transparent)]
+    Output(#[from] outfile::OutputError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,

@@ -2,25 +2,28 @@
 //! gzip when the name ends in `.gz`. Written to a temporary file beside the target and renamed into place on
 //! [`StepFileWriter::finish`], so a failed run leaves no half-written file. Also reads such files back.
 
+use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use flate2::Compression;
 use flate2::write::GzEncoder;
-use tempfile::NamedTempFile;
+use outfile::PendingFile;
 
 use crate::error::StepFileError;
 use crate::gzip::{is_gzip, open_text};
 use crate::sink::{Step, StepSink};
 
 enum Output {
-    Plain(BufWriter<NamedTempFile>),
-    Gzip(GzEncoder<BufWriter<NamedTempFile>>),
+    Plain(BufWriter<File>),
+    Gzip(GzEncoder<BufWriter<File>>),
 }
 
 /// A [`StepSink`] writing one motor's steps to a file. I/O errors are kept and reported by `finish`.
 pub struct StepFileWriter {
     path: PathBuf,
+    /// The file as it is written; it appears at `path` when finished ([`outfile`]: never over an input).
+    pending: Option<PendingFile>,
     out: Option<Output>,
     error: Option<std::io::Error>,
     line: Vec<u8>,
@@ -38,25 +41,8 @@ impl StepFileWriter {
     /// Start writing `path` (gzip if it ends in `.gz`).
     pub fn create(path: impl AsRef<Path>) -> Result<Self, StepFileError> {
         let path = path.as_ref().to_path_buf();
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let mut builder = tempfile::Builder::new();
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            // Given at creation, so the umask applies as to any new file (tempfile's default is 0600).
-            builder.permissions(std::fs::Permissions::from_mode(0o666));
-        }
-        let temp: NamedTempFile =
-            builder
-                .tempfile_in(&dir)
-                .map_err(|source| StepFileError::Io {
-                    path: path.clone(),
-                    source,
-                })?;
-        let buffered = BufWriter::with_capacity(1 << 16, temp);
+        let pending = PendingFile::create(&path)?;
+        let buffered = BufWriter::with_capacity(1 << 16, pending.reopen()?);
         let out = if is_gzip(&path) {
             Output::Gzip(GzEncoder::new(buffered, Compression::default()))
         } else {
@@ -64,13 +50,14 @@ impl StepFileWriter {
         };
         Ok(StepFileWriter {
             path,
+            pending: Some(pending),
             out: Some(out),
             error: None,
             line: Vec::with_capacity(32),
         })
     }
 
-    /// Flush, close and rename the file into place.
+    /// Flush, close and put the file in place.
     pub fn finish(mut self) -> Result<PathBuf, StepFileError> {
         let io = |source| StepFileError::Io {
             path: self.path.clone(),
@@ -84,9 +71,10 @@ impl StepFileWriter {
             Some(Output::Gzip(g)) => g.finish().map_err(io)?,
             None => return Err(io(std::io::Error::other("writer already finished"))),
         };
-        let temp = buffered.into_inner().map_err(|e| io(e.into_error()))?;
-        temp.as_file().sync_all().map_err(io)?;
-        temp.persist(&self.path).map_err(|e| io(e.error))?;
+        drop(buffered.into_inner().map_err(|e| io(e.into_error()))?);
+        if let Some(pending) = self.pending.take() {
+            pending.commit()?;
+        }
         Ok(self.path)
     }
 

@@ -25,6 +25,14 @@ pub enum MotorUnit {
     Rad,
 }
 
+/// Which configured angular limits bind a machine's turning (rad) motors: a polar bed's
+/// (`max_angular_velocity`, `max_angular_accel`) or a SCARA's joints' (`max_joint_velocity`, `max_joint_accel`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TurningLimits {
+    Bed,
+    Joints,
+}
+
 /// A motor (stepper) as the kinematics sees it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Motor {
@@ -185,6 +193,11 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
 
     /// The point where a bed angle is undefined, for machines that have one (an ideal polar machine).
     fn rotation_centre(&self) -> Option<RotationCentre> {
+        None
+    }
+
+    /// Which angular limits bind this machine's rad motors, if it has any.
+    fn turning_limits(&self) -> Option<TurningLimits> {
         None
     }
 

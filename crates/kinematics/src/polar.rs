@@ -26,7 +26,7 @@ use crate::common::{
 };
 use crate::{
     Kinematics, Motor, MotorMap, MotorUnit, PATH_TOLERANCE, ParamError, PolarParams,
-    RADIAL_ROUNDING, ReachError, RotationCentre, SegmentError, Vec3,
+    RADIAL_ROUNDING, ReachError, RotationCentre, SegmentError, TurningLimits, Vec3,
 };
 
 /// Motor order: bed (rad), arm (mm), z (mm).
@@ -125,6 +125,10 @@ impl Kinematics for Polar {
             bed: BED,
             rim: self.params.arm.position_max.filter(|r| *r > 0.0),
         })
+    }
+
+    fn turning_limits(&self) -> Option<TurningLimits> {
+        Some(TurningLimits::Bed)
     }
 
     /// The arm at its endstop, the bed declared at angle 0 (a bed endstop, if any, is not used here).

@@ -23,7 +23,7 @@ use crate::common::{
 };
 use crate::{
     ElbowBranch, Kinematics, Motor, MotorMap, MotorUnit, ParamError, ReachError, ScaraFrame,
-    ScaraParams, SegmentError, Vec3,
+    ScaraParams, SegmentError, TurningLimits, Vec3,
 };
 
 /// Motor order: shoulder (rad), elbow (rad), z (mm).
@@ -565,6 +565,10 @@ pub fn normalise(a: f64) -> f64 {
 impl Kinematics for Scara {
     fn name(&self) -> &'static str {
         "scara"
+    }
+
+    fn turning_limits(&self) -> Option<TurningLimits> {
+        Some(TurningLimits::Joints)
     }
 
     fn motors(&self) -> &[Motor] {

@@ -2,8 +2,8 @@
 
 use crate::kinematic_limits::MotorLimit;
 use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
-use config::{KinematicsKind, MachineConfig};
-use kinematics::{Kinematics, MotorUnit};
+use config::MachineConfig;
+use kinematics::{Kinematics, MotorUnit, TurningLimits};
 
 /// Why a machine could not be set up.
 #[derive(Debug, thiserror::Error)]
@@ -68,12 +68,14 @@ fn motor_limits(machine: &MachineConfig, kin: &dyn Kinematics) -> Vec<MotorLimit
     let l = &machine.limits;
     let mut limits = Vec::new();
     for (index, motor) in kin.motors().iter().enumerate() {
-        // The machine says which motors turn: a polar machine's bed, a SCARA's joints.
-        let (mut velocity, accel) = match (machine.kinematics, motor.unit) {
-            (KinematicsKind::Polar, MotorUnit::Rad) => {
+        // The machine says which limits bind its turning motors: a polar bed's, a SCARA's joints'.
+        let (mut velocity, accel) = match (kin.turning_limits(), motor.unit) {
+            (Some(TurningLimits::Bed), MotorUnit::Rad) => {
                 (l.max_angular_velocity, l.max_angular_accel)
             }
-            (KinematicsKind::Scara, MotorUnit::Rad) => (l.max_joint_velocity, l.max_joint_accel),
+            (Some(TurningLimits::Joints), MotorUnit::Rad) => {
+                (l.max_joint_velocity, l.max_joint_accel)
+            }
             _ => (None, None),
         };
         if let Some(rate) = machine.max_step_rate(&motor.name) {

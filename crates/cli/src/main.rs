@@ -10,7 +10,6 @@ mod magnets;
 mod maps;
 mod output;
 mod report;
-mod testprint;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -14,6 +14,7 @@ pub mod replay;
 pub mod report;
 pub mod scenario;
 pub mod simulation;
+pub mod testprint;
 
 pub use error::SimulationError;
 pub use machine::{Machine, motor_model_from_config};

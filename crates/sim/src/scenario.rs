@@ -8,69 +8,13 @@ use crate::machine::Machine;
 use crate::replay::ReplayOptions;
 use crate::report::{Report, RunReport, write_report};
 use config::MachineConfig;
-use std::f64::consts::TAU;
-use std::fmt::Write as _;
 use std::io::BufRead;
 
 pub use crate::correction::{
     CorrectedValue, CorrectionSummary, PATTERN_NOISE, calibrate_and_correct,
 };
 pub use crate::simulation::{Simulation, simulate};
-
-/// A test print: `layers` layers of circles (centre, radius; 128 segments each) and axis-aligned squares
-/// (centre, side), starting with `SET_KINEMATIC_POSITION` at `start` when given.
-pub fn test_print_gcode(
-    circles: &[([f64; 2], f64)],
-    squares: &[([f64; 2], f64)],
-    layers: usize,
-    start: Option<[f64; 3]>,
-) -> String {
-    let mut s = String::from("; jointspace sim: circle and square test print\n");
-    if let Some([x, y, z]) = start {
-        let _ = writeln!(s, "SET_KINEMATIC_POSITION X={x:.3} Y={y:.3} Z={z:.3}");
-    }
-    s.push_str("G90\nM83\n");
-    const SEGMENTS: usize = 128;
-    const E_PER_MM: f64 = 0.05;
-    for layer in 0..layers {
-        let z = 0.3 + 0.2 * layer as f64;
-        let _ = writeln!(s, ";LAYER:{layer}\nG0 Z{z:.3} F600");
-        for &([cx, cy], r) in circles {
-            let _ = writeln!(s, "G0 X{:.4} Y{cy:.4} F6000", cx + r);
-            let e = TAU * r / SEGMENTS as f64 * E_PER_MM;
-            for k in 1..=SEGMENTS {
-                let a = TAU * k as f64 / SEGMENTS as f64;
-                let _ = writeln!(
-                    s,
-                    "G1 X{:.4} Y{:.4} E{e:.5} F1800",
-                    cx + r * a.cos(),
-                    cy + r * a.sin()
-                );
-            }
-        }
-        for &([cx, cy], side) in squares {
-            let h = 0.5 * side;
-            let corners = [
-                [cx - h, cy - h],
-                [cx + h, cy - h],
-                [cx + h, cy + h],
-                [cx - h, cy + h],
-                [cx - h, cy - h],
-            ];
-            let _ = writeln!(s, "G0 X{:.4} Y{:.4} F6000", corners[0][0], corners[0][1]);
-            for c in &corners[1..] {
-                let _ = writeln!(
-                    s,
-                    "G1 X{:.4} Y{:.4} E{:.5} F1800",
-                    c[0],
-                    c[1],
-                    side * E_PER_MM
-                );
-            }
-        }
-    }
-    s
-}
+pub use crate::testprint::test_print_gcode;
 
 /// The bundled example polar printer (`examples/machines/polar.cfg`, as `jointspace demo` runs it).
 pub const POLAR_EXAMPLE: &str = include_str!("../../../examples/machines/polar.cfg");

@@ -4,8 +4,8 @@
 use crate::machine::load_machine;
 use crate::magnets::{SimulatedBed, draw_magnet_map, simulate_scan};
 use crate::output::write_atomically;
-use crate::testprint::TestPrint;
 use crate::{diag, maps, report};
+use sim::testprint::TestPrint;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

@@ -1,5 +1,6 @@
-//! jointspace's own test prints: rings, a square and a star, a few layers high, written as slicer-like G-code
-//! (layer markers, feature types, relative extrusion, one arc). Used by the demo and by tests.
+//! jointspace's own test prints: the demo's slicer-like print (rings, a square, a star and an arc, with layer
+//! markers and feature types: [`TestPrint`]) and the simulator's measurement print (circles and squares whose
+//! roundness, sides and corners the deviation metrics fit: [`test_print_gcode`]), on the same geometry helpers.
 
 use std::f64::consts::TAU;
 use std::fmt::Write;
@@ -54,6 +55,49 @@ impl TestPrint {
         g.footer();
         g.text
     }
+}
+
+/// A test print: `layers` layers of circles (centre, radius; 128 segments each) and axis-aligned squares
+/// (centre, side), starting with `SET_KINEMATIC_POSITION` at `start` when given.
+pub fn test_print_gcode(
+    circles: &[([f64; 2], f64)],
+    squares: &[([f64; 2], f64)],
+    layers: usize,
+    start: Option<[f64; 3]>,
+) -> String {
+    let mut s = String::from("; jointspace sim: circle and square test print\n");
+    if let Some([x, y, z]) = start {
+        let _ = writeln!(s, "SET_KINEMATIC_POSITION X={x:.3} Y={y:.3} Z={z:.3}");
+    }
+    s.push_str("G90\nM83\n");
+    const SEGMENTS: usize = 128;
+    const E_PER_MM: f64 = 0.05;
+    for layer in 0..layers {
+        let z = 0.3 + 0.2 * layer as f64;
+        let _ = writeln!(s, ";LAYER:{layer}\nG0 Z{z:.3} F600");
+        for &(centre, r) in circles {
+            let _ = writeln!(s, "G0 X{:.4} Y{:.4} F6000", centre[0] + r, centre[1]);
+            let e = TAU * r / SEGMENTS as f64 * E_PER_MM;
+            for k in 1..=SEGMENTS {
+                let p = polar_point(centre, r, TAU * k as f64 / SEGMENTS as f64);
+                let _ = writeln!(s, "G1 X{:.4} Y{:.4} E{e:.5} F1800", p[0], p[1]);
+            }
+        }
+        for &(centre, side) in squares {
+            let corners = square(centre, 0.5 * side);
+            let _ = writeln!(s, "G0 X{:.4} Y{:.4} F6000", corners[0][0], corners[0][1]);
+            for c in corners[1..].iter().chain(&corners[..1]) {
+                let _ = writeln!(
+                    s,
+                    "G1 X{:.4} Y{:.4} E{:.5} F1800",
+                    c[0],
+                    c[1],
+                    side * E_PER_MM
+                );
+            }
+        }
+    }
+    s
 }
 
 /// Filament per mm of path for a 0.45 × 0.2 mm bead of 1.75 mm filament.

@@ -5,7 +5,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-pub use outfile::{is_stdio, register_input};
+pub use outfile::{is_stdio, register_input, write_atomically};
 
 /// An error when `path` is one of the registered inputs (compared as files: device and inode).
 pub fn refuse_input(path: &Path) -> anyhow::Result<()> {
@@ -32,14 +32,6 @@ pub fn directory_output(path: &Path) -> anyhow::Result<()> {
         anyhow::bail!("`-` (standard output) cannot take this output: it is a directory of files");
     }
     Ok(())
-}
-
-/// Write `path` through `fill`; the file appears only if `fill` succeeds ([`outfile::write_atomically`]).
-pub fn write_atomically<F>(path: &Path, fill: F) -> anyhow::Result<()>
-where
-    F: FnOnce(&mut dyn Write) -> anyhow::Result<()>,
-{
-    outfile::write_atomically(path, fill)
 }
 
 /// Standard output's reader has gone (`jointspace … | head`).

@@ -4,6 +4,7 @@ use crate::kinematic_limits::MotorLimit;
 use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use config::MachineConfig;
 use kinematics::{Kinematics, MotorUnit, TurningLimits};
+use std::sync::Arc;
 
 /// Why a machine could not be set up.
 #[derive(Debug, thiserror::Error)]
@@ -16,10 +17,11 @@ pub enum SetupError {
     Home { x: f64, y: f64, reason: String },
 }
 
-/// Kinematics + planner configuration + homing pose of one machine.
-#[derive(Debug)]
+/// Kinematics + planner configuration + homing pose of one machine. Cloning shares the kinematics (a set-up
+/// planned another way is a clone with other planner options, not a second build).
+#[derive(Debug, Clone)]
 pub struct MachineSetup {
-    pub kinematics: Box<dyn Kinematics>,
+    pub kinematics: Arc<dyn Kinematics>,
     pub planner: PlannerConfig,
     /// Where G28 leaves the toolhead, derived from the endstop positions through the kinematics.
     pub home_position: Option<[f64; 3]>,
@@ -27,8 +29,9 @@ pub struct MachineSetup {
 
 impl MachineSetup {
     pub fn from_config(machine: &MachineConfig) -> Result<MachineSetup, SetupError> {
-        let kinematics = kinematics::build(&machine.params)
-            .map_err(|e| SetupError::Kinematics(e.to_string()))?;
+        let kinematics: Arc<dyn Kinematics> = kinematics::build(&machine.params)
+            .map_err(|e| SetupError::Kinematics(e.to_string()))?
+            .into();
         let limits = &machine.limits;
         let mut planner = PlannerConfig::klipper(VelocityLimits {
             max_velocity: limits.max_velocity,

@@ -87,7 +87,7 @@ pub fn period_of(kin: &dyn Kinematics, motor: usize) -> Option<f64> {
 /// The G-code line a step problem at print time `time` comes from, planning `file` again on `machine` as the run
 /// did (`plan`). `None` when the file cannot be read again (standard input).
 pub fn locate(machine: &Machine, plan: PlanOptions, file: &Path, time: f64) -> Option<u64> {
-    line_at_time(&machine.setup_with(plan).ok()?, file, time)
+    line_at_time(&machine.setup_with(plan), file, time)
 }
 
 /// The G-code line whose move runs at print time `time`, found by planning `file` again on `setup` (the line of

@@ -62,11 +62,11 @@ impl Machine {
         })
     }
 
-    /// A fresh set-up of the same machine, planning as `options` say.
-    pub fn setup_with(&self, options: PlanOptions) -> Result<MachineSetup, SetupError> {
-        let mut setup = MachineSetup::from_config(&self.config)?;
+    /// The machine's set-up planning as `options` say (the kinematics shared, not built again).
+    pub fn setup_with(&self, options: PlanOptions) -> MachineSetup {
+        let mut setup = self.setup.clone();
         options.apply(&mut setup);
-        Ok(setup)
+        setup
     }
 }
 

@@ -6,7 +6,6 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use kinematics::Kinematics;
-use motion::machine::SetupError;
 use serde::Serialize;
 use stepgen::{
     ExpectedTravel, ExtruderSpec, FileAndStats, MotorStats, StepFileError, StepFileWriter,
@@ -50,8 +49,6 @@ pub enum RunError {
     /// A step stream no MCU could run.
     #[error(transparent)]
     Steps(#[from] StepStreamError),
-    #[error(transparent)]
-    Setup(#[from] SetupError),
     #[error(transparent)]
     Output(#[from] outfile::OutputError),
     #[error(transparent)]
@@ -106,7 +103,7 @@ pub fn run(
     cancelled: fn() -> bool,
 ) -> Result<RunSummary, RunError> {
     let started = Instant::now();
-    let setup = machine.setup_with(options.plan)?;
+    let setup = machine.setup_with(options.plan);
     let kinematics = setup.kinematics.as_ref();
     let motors = Motors::of(machine, kinematics);
     let sinks = motors.sinks(options)?;
@@ -156,47 +153,46 @@ pub fn run(
 }
 
 /// The machine's motors as a run steps them: the kinematics' motors, then the extruder's.
-struct Motors<'a> {
-    machine: &'a Machine,
+struct Motors {
     names: Vec<String>,
+    /// Each motor's configured step-rate limit.
+    max_rates: Vec<Option<f64>>,
     extruder: Option<ExtruderSpec>,
 }
 
-impl<'a> Motors<'a> {
-    fn of(machine: &'a Machine, kinematics: &dyn Kinematics) -> Motors<'a> {
+impl Motors {
+    fn of(machine: &Machine, kinematics: &dyn Kinematics) -> Motors {
         let extruder = machine.config.extruder.as_ref().map(|e| ExtruderSpec {
             name: e.stepper.name.clone(),
             step_distance: e.stepper.step_distance,
             start_position: 0.0,
         });
-        let names = kinematics
+        let names: Vec<String> = kinematics
             .motors()
             .iter()
             .map(|m| m.name.clone())
             .chain(extruder.iter().map(|e| e.name.clone()))
             .collect();
+        let max_rates = names
+            .iter()
+            .map(|name| machine.config.max_step_rate(name))
+            .collect();
         Motors {
-            machine,
             names,
+            max_rates,
             extruder,
         }
     }
 
-    /// One sink per motor: statistics with the step audit, and the step file when asked for one.
+    /// One sink per motor: statistics with the step audit, and the step file when asked for one (its folder
+    /// is made by `outfile` as the file is).
     fn sinks(&self, options: &RunOptions) -> Result<Vec<FileAndStats>, RunError> {
-        if let Some(dir) = &options.steps {
-            std::fs::create_dir_all(dir).map_err(|source| outfile::OutputError::CreateDir {
-                path: dir.clone(),
-                source,
-            })?;
-        }
         let mut sinks = Vec::with_capacity(self.names.len());
-        for name in &self.names {
+        for (name, &max_rate) in self.names.iter().zip(&self.max_rates) {
             let file = match &options.steps {
                 Some(dir) => Some(StepFileWriter::create(dir.join(format!("{name}.txt")))?),
                 None => None,
             };
-            let max_rate = self.machine.config.max_step_rate(name);
             sinks.push(Tee(
                 StepStats::new(options.clock_hz).audited(max_rate),
                 file,
@@ -249,13 +245,13 @@ impl<'a> Motors<'a> {
         clock_hz: f64,
     ) -> Result<Vec<MotorSummary>, RunError> {
         let mut motors = Vec::with_capacity(sinks.len());
-        for ((sink, name), filtered_pairs) in sinks.into_iter().zip(&self.names).zip(filtered) {
+        let motors_of_run = sinks.into_iter().zip(&self.names).zip(&self.max_rates);
+        for (((sink, name), &limit), filtered_pairs) in motors_of_run.zip(filtered) {
             let Tee(stats, file) = sink;
             if let Some(file) = file {
                 file.finish()?;
             }
             let stats: MotorStats = stats.summary(clock_hz, filtered_pairs);
-            let limit = self.machine.config.max_step_rate(name);
             motors.push(MotorSummary {
                 name: name.clone(),
                 steps: stats.steps,

@@ -170,15 +170,6 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         self.sink_error.take()
     }
 
-    /// Keeps a sink's first error; after it the sink is handed nothing more.
-    fn deliver(sink_error: &mut Option<SinkError>, result: Result<(), SinkError>) {
-        if let Err(e) = result
-            && sink_error.is_none()
-        {
-            *sink_error = Some(e);
-        }
-    }
-
     /// Change velocity limits (`SET_VELOCITY_LIMIT`, `M204`); queued moves keep the limits they were made with.
     pub fn set_limits(&mut self, limits: VelocityLimits) {
         self.limits = limits;
@@ -369,10 +360,10 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         let start = self.last_move_time();
         let centre = xyz(self.commanded_pos);
         let mv = TrapezoidMove::bed_turn(start, centre, angle, turn.max_velocity, turn.max_accel);
+        // After a sink's first error it is handed nothing more.
         if self.sink_error.is_none() {
             self.sink.origin(origin);
-            let result = self.sink.append(Queue::Toolhead, &mv);
-            Self::deliver(&mut self.sink_error, result);
+            self.sink_error = self.sink.append(Queue::Toolhead, &mv).err();
         }
         let end = start + mv.duration();
         self.print_time = end;
@@ -560,8 +551,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             let mut next_move_time = self.print_time;
             for mv in self.lookahead.ready(count) {
                 if self.sink_error.is_none() {
-                    let result = emit(&mut self.sink, next_move_time, mv);
-                    Self::deliver(&mut self.sink_error, result);
+                    self.sink_error = emit(&mut self.sink, next_move_time, mv).err();
                 }
                 next_move_time =
                     next_move_time + mv.plan.accel_t + mv.plan.cruise_t + mv.plan.decel_t;

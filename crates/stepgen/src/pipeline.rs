@@ -100,7 +100,7 @@ impl<'k, S: StepSink + Send> StepPipeline<'k, S> {
         };
         if let Err(e) = generator.run_chunk(toolhead, extruder, &mut self.sinks) {
             self.error = Some(e);
-        } else if let Some(message) = self.sinks.iter_mut().find_map(StepSink::take_error) {
+        } else if let Some(message) = self.sinks.iter().find_map(StepSink::failure) {
             self.error = Some(StepError::Output(message));
         }
     }
@@ -306,7 +306,7 @@ impl<S: StepSink> MotorThread<'_, S> {
                 Message::Chunk(chunk) => self.step_chunk(&chunk).map_err(fail)?,
                 Message::SetPosition { xyz, e } => self.restart(xyz, e).map_err(fail)?,
             }
-            if let Some(message) = self.sink.take_error() {
+            if let Some(message) = self.sink.failure() {
                 return Err(fail(StepError::Output(message)));
             }
         }

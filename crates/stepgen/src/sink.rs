@@ -22,7 +22,7 @@ pub trait StepSink {
 
     /// The error the sink met, if any. Asked between chunks of work, not per step (a
     /// `Result` per step would cost the hot loop), so a failed sink stops its motor, and the run, early.
-    fn take_error(&mut self) -> Option<String> {
+    fn failure(&self) -> Option<String> {
         None
     }
 }
@@ -45,8 +45,8 @@ impl<S: StepSink + ?Sized> StepSink for &mut S {
         (**self).steps(clocks, dir);
     }
 
-    fn take_error(&mut self) -> Option<String> {
-        (**self).take_error()
+    fn failure(&self) -> Option<String> {
+        (**self).failure()
     }
 }
 
@@ -66,8 +66,8 @@ impl<S: StepSink> StepSink for Option<S> {
         }
     }
 
-    fn take_error(&mut self) -> Option<String> {
-        self.as_mut()?.take_error()
+    fn failure(&self) -> Option<String> {
+        self.as_ref()?.failure()
     }
 }
 
@@ -105,7 +105,7 @@ impl<A: StepSink, B: StepSink> StepSink for Tee<A, B> {
         self.1.steps(clocks, dir);
     }
 
-    fn take_error(&mut self) -> Option<String> {
-        self.0.take_error().or_else(|| self.1.take_error())
+    fn failure(&self) -> Option<String> {
+        self.0.failure().or_else(|| self.1.failure())
     }
 }

@@ -99,7 +99,7 @@ impl StepSink for StepFileWriter {
     }
 
     /// A write error, named with the file (the writer keeps nothing after it: [`StepFileWriter::finish`] fails).
-    fn take_error(&mut self) -> Option<String> {
+    fn failure(&self) -> Option<String> {
         let e = self.error.as_ref()?;
         Some(format!("cannot write {}: {e}", self.path.display()))
     }

@@ -505,7 +505,7 @@ impl stepgen::StepSink for FailingSink {
         self.steps += 1;
     }
 
-    fn take_error(&mut self) -> Option<String> {
+    fn failure(&self) -> Option<String> {
         (self.steps > self.room).then(|| "no space left on device".to_string())
     }
 }

@@ -156,7 +156,15 @@ impl Machine {
                 end[0], end[1]
             ));
         }
-        let spans = split(kin, self.motor_limits(), start, end, speed, accel);
+        let spans = split(
+            kin,
+            self.motor_limits(),
+            start,
+            end,
+            speed,
+            accel,
+            self.cruise_ratio(),
+        );
         if spans.is_empty() {
             return Ok(MoveVerdict::Free);
         }
@@ -179,7 +187,7 @@ impl Machine {
         let limits = self.motor_limits();
         let cuts = |a: [f64; 3], b: [f64; 3]| {
             let length = distance(a, b);
-            let spans = split(kin, limits, a, b, speed, accel);
+            let spans = split(kin, limits, a, b, speed, accel, self.cruise_ratio());
             spans.iter().map(|s| s.end / length).collect::<Vec<_>>()
         };
         let centre = match &self.shape {
@@ -228,6 +236,11 @@ impl Machine {
         let pattern = calibrate::scara::pattern(&geometry, count, &admissible, &options);
         let template = calibrate::scara::measurement_template(&pattern.poses);
         Some((pattern, template))
+    }
+
+    /// The `minimum_cruise_ratio` of the config (Klipper's lookahead uses the same).
+    fn cruise_ratio(&self) -> f64 {
+        self.setup.planner.limits.minimum_cruise_ratio
     }
 
     fn motor_limits(&self) -> &[MotorLimit] {

@@ -256,6 +256,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
                 xyz(whole.end_pos),
                 requested,
                 whole.accel,
+                self.limits.minimum_cruise_ratio,
             )
         } else {
             Vec::new()
@@ -322,7 +323,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         self.commanded_pos = mv.end_pos;
         if let Some(prev) = self.lookahead.last() {
             let extruder_v2 = extruder_junction_v2(self.config.extruder.as_ref(), prev, &mv);
-            mv.calc_junction(prev, extruder_v2);
+            let motors_v2 = self.motor_junction_v2(prev, &mv);
+            mv.calc_junction(prev, extruder_v2.min(motors_v2));
         }
         if self.lookahead.push(mv) {
             self.process_lookahead(true);
@@ -331,6 +333,20 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             self.check_pause();
         }
         Ok(())
+    }
+
+    /// The motors' cap on the junction speed² (see [`kinematic_limits::junction_v2`]).
+    fn motor_junction_v2(&self, prev: &Move, mv: &Move) -> f64 {
+        let limits = &self.config.kinematic_limits;
+        if !(prev.is_kinematic && mv.is_kinematic) || limits.iter().all(|l| l.max_accel.is_none()) {
+            return f64::INFINITY;
+        }
+        let side = |m: &Move| kinematic_limits::JunctionSide {
+            start: xyz(m.start_pos),
+            end: xyz(m.end_pos),
+            accel: m.accel,
+        };
+        kinematic_limits::junction_v2(self.kinematics, limits, side(prev), side(mv))
     }
 
     fn note_if_slowed(&mut self, mv: &Move, speed: f64) {

@@ -2,7 +2,7 @@
 //! 60 mm, `home_position: 0, 200, 0` — the arm stretched straight, a singular pose), with the two edits Kalico
 //! requires (`gear_ratio` for the rotary steppers, an explicit `homing_positive_dir`): it homes to the declared
 //! pose, prints a Ø40 circle, goes to the straight arm and back, and every step stream is one an MCU can run,
-//! with the joints within their limits.
+//! with the joints within their travel and, when the config sets them, their speed and acceleration limits.
 
 use std::f64::consts::TAU;
 
@@ -81,5 +81,49 @@ fn the_fekt_arm_homes_prints_a_circle_and_reaches_the_straight_arm() {
             (moved - expected).abs() <= step.to_degrees(),
             "motor {motor}: {moved}° vs {expected}°"
         );
+    }
+}
+
+/// With joint limits (`max_joint_velocity`, `max_joint_accel`, alone and together) the arm still leaves the
+/// stretched pose it homed to, prints the circle and comes back to the stretched pose and away: each joint's
+/// speed and acceleration, read from its own steps, stay within the limits (1% for the reading), no motor steps
+/// twice on one clock, and the print ends where it should.
+#[test]
+fn with_joint_limits_the_arm_leaves_and_reaches_the_straight_arm_within_them() {
+    let step = TAU / (200.0 * 16.0 * 3.0);
+    for (velocity, accel) in [
+        (Some(5.0), None),
+        (None, Some(100.0)),
+        (Some(2.0), Some(20.0)),
+    ] {
+        let mut extra = String::new();
+        if let Some(v) = velocity {
+            extra += &format!("max_joint_velocity: {v}\n");
+        }
+        if let Some(a) = accel {
+            extra += &format!("max_joint_accel: {a}\n");
+        }
+        let (moves, steps) = plan_and_step(&fekt_example(&extra), PRINT);
+        let end = moves.last().expect("moves").end_pos();
+        assert!(
+            end[0].abs() < 1e-9 && (end[1] - 150.0).abs() < 1e-9,
+            "{extra}: {end:?}"
+        );
+        for (motor, motor_steps) in steps.iter().enumerate() {
+            let shared = motor_steps.windows(2).find(|w| w[0].clock >= w[1].clock);
+            assert!(shared.is_none(), "{extra}: motor {motor} {shared:?}");
+        }
+        for (motor, joint_steps) in steps.iter().take(2).enumerate() {
+            let (omega, alpha) = crate::limits::peak_rates(joint_steps, step);
+            if let Some(v) = velocity {
+                assert!(omega <= v * 1.01, "{extra}: motor {motor} at {omega} rad/s");
+            }
+            if let Some(a) = accel {
+                assert!(
+                    alpha <= a * 1.01,
+                    "{extra}: motor {motor} at {alpha} rad/s²"
+                );
+            }
+        }
     }
 }

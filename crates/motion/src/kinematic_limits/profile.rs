@@ -1,30 +1,8 @@
-//! Motor speed and acceleration limits along a straight move (beyond Klipper).
-//!
-//! A polar bed turns at `v·d/ρ²` near its centre and a SCARA joint speeds up near singular poses, so a Cartesian
-//! speed that is fine elsewhere asks too much of a motor there. Klipper either ignores this or slows the whole
-//! move. Here a move is cut into collinear spans, each with its own cruise-speed and acceleration cap, derived
-//! from bounds on the motor's rate `q'(s) = dq/ds` and curvature `q''(s)` over the span:
-//! motor speed `q'·v ≤ V` and motor acceleration `|q''|·v² + |q'|·|a| ≤ A`. The path is unchanged, and the
-//! lookahead sees ordinary moves meeting at straight (full-speed) junctions.
+//! How a motor position varies along a straight move, and bounds on its rate and curvature.
 
 use kinematics::{Kinematics, MotorMap, RADIAL_ROUNDING, Vec3};
 
-/// Limits of one motor, in its own units (mm or rad per second, per second²).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MotorLimit {
-    /// Index in the kinematics' motor order.
-    pub motor: usize,
-    pub max_velocity: Option<f64>,
-    pub max_accel: Option<f64>,
-}
-
-/// A part of a move, from the previous span's end (or the move's start) to `end` (mm along the move), with its caps.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Span {
-    pub end: f64,
-    pub max_speed: f64,
-    pub max_accel: f64,
-}
+use super::limit::MotorLimit;
 
 /// Band boundaries grow by this factor away from the closest approach: a span's cap is at most this much
 /// (squared) below what the motor would allow at its best point.
@@ -34,120 +12,30 @@ const FIRST_BAND: f64 = 0.25;
 /// Motors without a closed form are sampled this many times per span.
 const GENERAL_SAMPLES: usize = 9;
 /// …on spans at most this long (mm), and at most this many spans per move.
-const GENERAL_SPAN_MM: f64 = 1.0;
+pub(super) const GENERAL_SPAN_MM: f64 = 1.0;
 const GENERAL_MAX_SPANS: usize = 256;
 /// Sampled rates are inflated by this margin (they bound a smooth function from samples).
-const SAMPLE_MARGIN: f64 = 1.05;
-
-/// Spans of the move `start → end` requested at `speed` and `accel`, or an empty list when no limit binds
-/// anywhere (the move then stays whole, exactly as Klipper plans it).
-pub fn split(
-    kin: &dyn Kinematics,
-    limits: &[MotorLimit],
-    start: Vec3,
-    end: Vec3,
-    speed: f64,
-    accel: f64,
-) -> Vec<Span> {
-    let length = distance(start, end);
-    if limits.is_empty() || length <= 0.0 {
-        return Vec::new();
-    }
-    let dir = [
-        (end[0] - start[0]) / length,
-        (end[1] - start[1]) / length,
-        (end[2] - start[2]) / length,
-    ];
-    let line = Line { start, dir, length };
-    // Fast path: bounds over the whole move; most moves are nowhere near a limit.
-    let slack = limits.iter().all(|l| {
-        let profile = Profile::new(kin, l.motor, &line);
-        let (v, a) = caps(l, profile.bounds(kin, &line, 0.0, length), speed, accel);
-        v >= speed && a >= accel
-    });
-    if slack {
-        return Vec::new();
-    }
-    let profiles: Vec<(MotorLimit, Profile)> = limits
-        .iter()
-        .map(|l| (*l, Profile::new(kin, l.motor, &line)))
-        .collect();
-    let mut cuts = vec![0.0, length];
-    for (limit, profile) in &profiles {
-        profile.breakpoints(&line, limit, speed, &mut cuts);
-    }
-    cuts.retain(|c| c.is_finite());
-    cuts.sort_by(f64::total_cmp);
-    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
-
-    let mut spans: Vec<Span> = Vec::with_capacity(cuts.len());
-    for pair in cuts.windows(2) {
-        let (s0, s1) = (pair[0], pair[1]);
-        let mut max_speed = speed;
-        let mut max_accel = accel;
-        for (limit, profile) in &profiles {
-            let bounds = profile.bounds(kin, &line, s0, s1);
-            let (v, a) = caps(limit, bounds, speed, accel);
-            max_speed = max_speed.min(v);
-            max_accel = max_accel.min(a);
-        }
-        push_merged(
-            &mut spans,
-            Span {
-                end: s1,
-                max_speed,
-                max_accel,
-            },
-        );
-    }
-    let binds = spans
-        .iter()
-        .any(|s| s.max_speed < speed || s.max_accel < accel);
-    if binds { spans } else { Vec::new() }
-}
-
-/// Cruise-speed and acceleration caps for a motor whose rate and curvature along the span are at most
-/// `(rate, curvature)`: half the acceleration budget goes to the curvature term at the capped speed.
-fn caps(limit: &MotorLimit, (rate, curvature): (f64, f64), speed: f64, accel: f64) -> (f64, f64) {
-    let mut v = speed;
-    let mut a = accel;
-    if let Some(max_v) = limit.max_velocity
-        && rate > 0.0
-    {
-        v = v.min(max_v / rate);
-    }
-    if let Some(max_a) = limit.max_accel {
-        if curvature > 0.0 {
-            v = v.min((0.5 * max_a / curvature).sqrt());
-        }
-        if rate > 0.0 {
-            a = a.min((max_a - curvature * v * v) / rate);
-        }
-    }
-    (v, a)
-}
-
-/// Append `span`, joining it to the previous one when their caps are equal.
-fn push_merged(spans: &mut Vec<Span>, span: Span) {
-    if let Some(last) = spans.last_mut()
-        && last.max_speed == span.max_speed
-        && last.max_accel == span.max_accel
-    {
-        last.end = span.end;
-        return;
-    }
-    spans.push(span);
-}
+pub(super) const SAMPLE_MARGIN: f64 = 1.05;
 
 /// The move as a parametrised line: `p(s) = start + dir·s`, `0 ≤ s ≤ length`.
-struct Line {
-    start: Vec3,
-    dir: Vec3,
-    length: f64,
+pub(super) struct Line {
+    pub(super) start: Vec3,
+    pub(super) dir: Vec3,
+    pub(super) length: f64,
 }
 
 impl Line {
-    fn at(&self, s: f64) -> Vec3 {
+    /// The line `start → end`, or `None` when it has no length.
+    pub(super) fn new(start: Vec3, end: Vec3) -> Option<Line> {
+        let length = distance(start, end);
+        (length > 0.0).then(|| Line {
+            start,
+            dir: [0, 1, 2].map(|k| (end[k] - start[k]) / length),
+            length,
+        })
+    }
+
+    pub(super) fn at(&self, s: f64) -> Vec3 {
         [
             self.start[0] + self.dir[0] * s,
             self.start[1] + self.dir[1] * s,
@@ -172,7 +60,7 @@ impl Line {
 }
 
 /// How one motor's position varies along the line.
-enum Profile {
+pub(super) enum Profile {
     /// q' constant, q'' = 0.
     Linear {
         rate: f64,
@@ -195,7 +83,7 @@ enum Profile {
 }
 
 impl Profile {
-    fn new(kin: &dyn Kinematics, motor: usize, line: &Line) -> Profile {
+    pub(super) fn new(kin: &dyn Kinematics, motor: usize, line: &Line) -> Profile {
         match kin.motor_map(motor) {
             MotorMap::Linear { coeffs } => Profile::Linear {
                 rate: (coeffs[0] * line.dir[0] + coeffs[1] * line.dir[1] + coeffs[2] * line.dir[2])
@@ -219,8 +107,20 @@ impl Profile {
         }
     }
 
+    /// Whether the motor has no closed form along the line (its rate is sampled, and unbounded at a singular
+    /// pose).
+    pub(super) fn is_sampled(&self) -> bool {
+        matches!(self, Profile::General { .. })
+    }
+
     /// Cut points (mm along the line) that keep each span's rate nearly constant where the limit may bind.
-    fn breakpoints(&self, line: &Line, limit: &MotorLimit, speed: f64, cuts: &mut Vec<f64>) {
+    pub(super) fn breakpoints(
+        &self,
+        line: &Line,
+        limit: &MotorLimit,
+        speed: f64,
+        cuts: &mut Vec<f64>,
+    ) {
         match *self {
             Profile::Linear { .. } => {}
             Profile::Radius { s_star, d, xy } | Profile::Angle { s_star, d, xy } => {
@@ -250,7 +150,7 @@ impl Profile {
     }
 
     /// Upper bounds of |q'| and |q''| over `[s0, s1]`.
-    fn bounds(&self, kin: &dyn Kinematics, line: &Line, s0: f64, s1: f64) -> (f64, f64) {
+    pub(super) fn bounds(&self, kin: &dyn Kinematics, line: &Line, s0: f64, s1: f64) -> (f64, f64) {
         match *self {
             Profile::Linear { rate } => (rate, 0.0),
             Profile::Radius { s_star, d, xy } | Profile::Angle { s_star, d, xy } => {

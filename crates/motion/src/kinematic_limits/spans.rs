@@ -1,0 +1,193 @@
+//! Cutting a move into spans with their own caps.
+
+use kinematics::{Kinematics, Vec3};
+
+use super::limit::{MotorLimit, Span, caps};
+use super::profile::{GENERAL_SPAN_MM, Line, Profile};
+use super::rest::{RestEnd, rest_accel};
+
+/// Spans of the move `start → end` requested at `speed` and `accel`, or an empty list when no limit binds
+/// anywhere (the move then stays whole, exactly as Klipper plans it). An end the toolhead rests at
+/// ([`Kinematics::rests_at`]) gets a span of its own, capped as the toolhead leaves or reaches it from rest
+/// (`minimum_cruise_ratio`: the lookahead's, which says where it may cruise).
+pub fn split(
+    kin: &dyn Kinematics,
+    limits: &[MotorLimit],
+    start: Vec3,
+    end: Vec3,
+    speed: f64,
+    accel: f64,
+    minimum_cruise_ratio: f64,
+) -> Vec<Span> {
+    let Some(line) = Line::new(start, end).filter(|_| !limits.is_empty()) else {
+        return Vec::new();
+    };
+    let length = line.length;
+    // Fast path: bounds over the whole move; most moves are nowhere near a limit.
+    let slack = limits.iter().all(|l| {
+        let profile = Profile::new(kin, l.motor, &line);
+        let (v, a) = caps(l, profile.bounds(kin, &line, 0.0, length), speed, accel);
+        v >= speed && a >= accel
+    });
+    if slack {
+        return Vec::new();
+    }
+    let profiles: Vec<(MotorLimit, Profile)> = limits
+        .iter()
+        .map(|l| (*l, Profile::new(kin, l.motor, &line)))
+        .collect();
+    let rests = [kin.rests_at(start), kin.rests_at(end)];
+    let rest_length = GENERAL_SPAN_MM.min(0.5 * length);
+    let mut cuts = vec![0.0, length];
+    for (limit, profile) in &profiles {
+        profile.breakpoints(&line, limit, speed, &mut cuts);
+    }
+    if rests[0] {
+        cuts.push(rest_length);
+    }
+    if rests[1] {
+        cuts.push(length - rest_length);
+    }
+    cuts.retain(|c| c.is_finite());
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+
+    let mut raw: Vec<Span> = cuts
+        .windows(2)
+        .map(|pair| {
+            let at_rest = (rests[0] && pair[0] == 0.0) || (rests[1] && pair[1] == length);
+            span_caps(
+                kin,
+                &line,
+                &profiles,
+                (pair[0], pair[1]),
+                (speed, accel),
+                at_rest,
+            )
+        })
+        .collect();
+    if rests.contains(&true) {
+        let sampled: Vec<usize> = (0..profiles.len())
+            .filter(|&i| profiles[i].1.is_sampled())
+            .collect();
+        let rest = Rest {
+            kin,
+            limits,
+            sampled: &sampled,
+            minimum_cruise_ratio,
+        };
+        rest.fit(&line, rests, &mut raw);
+    }
+    let mut spans: Vec<Span> = Vec::with_capacity(raw.len());
+    for span in raw {
+        push_merged(&mut spans, span);
+    }
+    let binds = spans
+        .iter()
+        .any(|s| s.max_speed < speed || s.max_accel < accel);
+    if binds { spans } else { Vec::new() }
+}
+
+/// Append `span`, joining it to the previous one when their caps are equal.
+fn push_merged(spans: &mut Vec<Span>, span: Span) {
+    if let Some(last) = spans.last_mut()
+        && last.max_speed == span.max_speed
+        && last.max_accel == span.max_accel
+    {
+        last.end = span.end;
+        return;
+    }
+    spans.push(span);
+}
+
+/// The caps of the span `s0..s1` from every motor's bounds over it. Beside a rest pose the sampled motors are
+/// left out: their caps come from [`Rest::fit`].
+fn span_caps(
+    kin: &dyn Kinematics,
+    line: &Line,
+    profiles: &[(MotorLimit, Profile)],
+    (s0, s1): (f64, f64),
+    (speed, accel): (f64, f64),
+    at_rest: bool,
+) -> Span {
+    let mut span = Span {
+        end: s1,
+        max_speed: speed,
+        max_accel: accel,
+    };
+    for (limit, profile) in profiles {
+        if at_rest && profile.is_sampled() {
+            continue;
+        }
+        let (v, a) = caps(limit, profile.bounds(kin, line, s0, s1), speed, accel);
+        span.max_speed = span.max_speed.min(v);
+        span.max_accel = span.max_accel.min(a);
+    }
+    span
+}
+
+/// What caps the spans beside rest poses: the sampled motors' limits (indexes into `limits`).
+struct Rest<'a> {
+    kin: &'a dyn Kinematics,
+    limits: &'a [MotorLimit],
+    sampled: &'a [usize],
+    minimum_cruise_ratio: f64,
+}
+
+impl Rest<'_> {
+    /// Cap the first span when the move leaves a rest pose and the last when it arrives at one.
+    fn fit(&self, line: &Line, rests: [bool; 2], spans: &mut [Span]) {
+        let n = spans.len();
+        let first = spans[0].end;
+        let last = line.length - if n > 1 { spans[n - 2].end } else { 0.0 };
+        let end = line.at(line.length);
+        let back = line.dir.map(|d| -d);
+        let leave = rests[0].then(|| self.accel(line.start, line.dir, first, spans[0].max_accel));
+        let arrive = rests[1].then(|| self.accel(end, back, last, spans[n - 1].max_accel));
+        if let (Some(a), Some(b)) = (leave, arrive)
+            && n <= 2
+        {
+            // The two rest spans are the whole move: one acceleration for both, meeting at their common cap.
+            let accel = a.min(b);
+            let length = first.max(last);
+            for span in spans.iter_mut() {
+                cap_from_rest(span, accel, length, f64::INFINITY);
+            }
+            return;
+        }
+        if let Some(accel) = leave {
+            let next = spans.get(1).map_or(f64::INFINITY, |s| s.max_speed);
+            cap_from_rest(&mut spans[0], accel, first, next);
+        }
+        if let Some(accel) = arrive {
+            let previous = n
+                .checked_sub(2)
+                .map_or(f64::INFINITY, |i| spans[i].max_speed);
+            cap_from_rest(&mut spans[n - 1], accel, last, previous);
+        }
+    }
+
+    fn accel(&self, pose: Vec3, away: Vec3, length: f64, accel: f64) -> f64 {
+        let end = RestEnd { pose, away, length };
+        rest_accel(
+            self.kin,
+            self.limits,
+            self.sampled,
+            end,
+            accel,
+            self.minimum_cruise_ratio,
+        )
+    }
+}
+
+/// A rest span of `length` accelerated at `accel` from rest: capped at the speed that reaches at its end, no
+/// faster than the span beside it allows (so the toolhead does not cruise inside it faster than that), and its
+/// acceleration no more than reaches that cap.
+fn cap_from_rest(span: &mut Span, accel: f64, length: f64, neighbour_speed: f64) {
+    let speed = (2.0 * accel * length)
+        .sqrt()
+        .min(span.max_speed)
+        .min(neighbour_speed);
+    span.max_speed = speed;
+    span.max_accel = accel.min(speed * speed / (2.0 * length));
+}

@@ -193,6 +193,7 @@ class Machine:
         self._motors = ffi.new("double[]", count)
         self._xyz = ffi.new("double[3]")
         self._limits = ffi.new("double[2]")
+        self._corner = ffi.new("double[9]")
         self._error = error
         self._margin = ffi.new("double *")
 
@@ -240,6 +241,13 @@ class Machine:
         if rc == 1:
             return self._limits[0], self._limits[1]
         return None
+
+    def junction_speed(self, prev_start, corner, prev_accel, next_end, next_accel):
+        """The highest speed at the corner (inf where nothing caps it)."""
+        for i, point in enumerate((prev_start, corner, next_end)):
+            for k in range(3):
+                self._corner[3 * i + k] = point[k]
+        return self.lib.jointspace_junction_speed(self.handle, self._corner, prev_accel, next_accel)
 
     def declared_home(self):
         if self.lib.jointspace_declared_home(self.handle, self._xyz):
@@ -449,18 +457,29 @@ class JointspaceKinematics:
             # Klipper's Z limits, scaled by the Z share of the move.
             z_ratio = move.move_d / abs(move.axes_d[2])
             move.limit_speed(self.max_z_velocity * z_ratio, self.max_z_accel * z_ratio)
-        if not xy_moves:
-            return
         exact = self.centre_slowdown == "exact"
-        speed = math.sqrt(move.max_cruise_v2) if exact else 0.
-        try:
-            limits = self.machine.check_move(move.start_pos, end, speed, move.accel)
-        except ValueError as e:
-            raise move.move_error("Move out of range (%s)" % (e,))
-        if limits is not None:
-            move.limit_speed(limits[0], limits[1])
-        if not exact:
-            self.klipper_centre_slowdown(move)
+        if xy_moves:
+            speed = math.sqrt(move.max_cruise_v2) if exact else 0.
+            try:
+                limits = self.machine.check_move(move.start_pos, end, speed, move.accel)
+            except ValueError as e:
+                raise move.move_error("Move out of range (%s)" % (e,))
+            if limits is not None:
+                move.limit_speed(limits[0], limits[1])
+            if not exact:
+                self.klipper_centre_slowdown(move)
+        if exact:
+            self._limit_corner(move)
+
+    def _limit_corner(self, move):
+        """Klipper changes every motor's speed at once at a corner: cap the corner into this move so that the jump of
+        each motor with an acceleration limit fits in it (as jointspace's own planner does)."""
+        prev = self.toolhead.lookahead.get_last()
+        if prev is None or not prev.is_kinematic_move:
+            return
+        speed = self.machine.junction_speed(prev.start_pos, prev.end_pos, prev.accel, move.end_pos, move.accel)
+        if speed < float("inf"):
+            prev.limit_next_junction_speed(speed)
 
     def klipper_centre_slowdown(self, move):
         pass

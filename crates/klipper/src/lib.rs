@@ -323,6 +323,30 @@ pub unsafe extern "C" fn jointspace_check_move(
     }
 }
 
+/// The highest speed (mm/s) at the corner between the move `points[0..3] → points[3..6]`, planned with
+/// acceleration `prev_accel`, and the move on to `points[6..9]`, planned with `next_accel`, that keeps each
+/// acceleration-limited motor's speed jump within its limit; infinity where nothing caps it (or on bad input).
+///
+/// # Safety
+/// `points` holds nine doubles.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_junction_speed(
+    m: *const Machine,
+    points: *const f64,
+    prev_accel: f64,
+    next_accel: f64,
+) -> f64 {
+    let Some(m) = machine(m) else {
+        return f64::INFINITY;
+    };
+    // SAFETY: points holds nine doubles.
+    let p = unsafe { std::slice::from_raw_parts(points, 9) };
+    let point = |i: usize| [p[3 * i], p[3 * i + 1], p[3 * i + 2]];
+    let speed = m.junction_speed([point(0), point(1), point(2)], [prev_accel, next_accel]);
+    // NaN from non-finite input caps nothing (the moves themselves are checked elsewhere).
+    if speed.is_nan() { f64::INFINITY } else { speed }
+}
+
 /// The pose the config declares for homing (FEKT-SCARA's `home_position`) into `xyz[3]`: 0, or −1 if none.
 ///
 /// # Safety

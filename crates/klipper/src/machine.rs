@@ -11,7 +11,7 @@ use config::MachineConfig;
 use kinematics::polar::Polar;
 use kinematics::scara::Scara;
 use kinematics::{Kinematics, MachineParams, MotorMap, ReachError};
-use motion::kinematic_limits::{MotorLimit, split};
+use motion::kinematic_limits::{JunctionSide, MotorLimit, junction_v2, split};
 use motion::machine::MachineSetup;
 
 use crate::pieces::{Centre, Waypoint, waypoints};
@@ -171,6 +171,20 @@ impl Machine {
         let speed = spans.iter().map(|s| s.max_speed).fold(speed, f64::min);
         let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
         Ok(MoveVerdict::Limited { speed, accel })
+    }
+
+    /// The highest speed (mm/s) at the corner where the move `points[0] → points[1]` (planned with acceleration
+    /// `accels[0]`) meets `points[1] → points[2]` (`accels[1]`) that keeps each acceleration-limited motor's jump
+    /// within its limit (`motion::kinematic_limits::junction_v2`); infinite where nothing caps it.
+    pub fn junction_speed(&self, points: [[f64; 3]; 3], accels: [f64; 2]) -> f64 {
+        let side = |start, end, accel| JunctionSide { start, end, accel };
+        junction_v2(
+            self.kinematics(),
+            self.motor_limits(),
+            side(points[0], points[1], accels[0]),
+            side(points[1], points[2], accels[1]),
+        )
+        .sqrt()
     }
 
     /// Where the G-code move transform cuts the move `start → end` (see [`crate::pieces`]); `bed_angle` is where

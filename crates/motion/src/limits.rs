@@ -82,6 +82,8 @@ pub struct PlannerConfig {
     /// first second of print time. Off: moves are planned by the lookahead alone (what a live printer does
     /// when fed fast enough). Needed only to compare with Klipper's batch output.
     pub klipper_batch_flush: bool,
+    /// Whose lookahead planning to reproduce (they differ in how high short moves peak).
+    pub lookahead: LookaheadRule,
     /// Motor speed/acceleration limits (polar bed, SCARA joints, step rates); empty: Klipper's behaviour.
     pub kinematic_limits: Vec<crate::kinematic_limits::MotorLimit>,
     /// Polar machines: moves through the centre stop there while the bed turns half a revolution. `None`:
@@ -102,11 +104,29 @@ pub enum Host {
     KalicoFekt,
 }
 
+/// Whose lookahead to reproduce where the hosts differ.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LookaheadRule {
+    /// Klipper's: a peak is set by the minimum-cruise-ratio track alone, and a move that cannot accelerate takes
+    /// its cruise speed from the move before it.
+    #[default]
+    Klipper,
+    /// Kalico's (and the FEKT-SCARA fork's, which predate Klipper's change): a peak is also capped by that move's
+    /// own cruise limit, moves that cannot accelerate wait for the next peak found further back, and a lazy flush
+    /// releases only the moves before the last peak.
+    Kalico,
+}
+
 impl PlannerConfig {
     /// Plan as `host` does where hosts differ.
     pub fn behave_as(&mut self, host: Host) {
         let fekt = host == Host::KalicoFekt;
         self.apply_z_limits = !fekt;
+        self.lookahead = if fekt {
+            LookaheadRule::Kalico
+        } else {
+            LookaheadRule::Klipper
+        };
         self.initial_step_gen_time = if fekt { self.buffer_time_start } else { 0.0 };
     }
 
@@ -123,6 +143,7 @@ impl PlannerConfig {
             kin_flush_delay: 0.001,
             initial_step_gen_time: 0.0,
             klipper_batch_flush: false,
+            lookahead: LookaheadRule::Klipper,
             skip_unreachable: false,
             kinematic_limits: Vec::new(),
             centre_turn: None,

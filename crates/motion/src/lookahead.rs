@@ -4,7 +4,7 @@
 //! move" is the linear quantity `2·d·a`. The arithmetic mirrors Klipper's toolhead so that the planned
 //! trapezoids agree with Klipper's to the last bits.
 
-use crate::limits::VelocityLimits;
+use crate::limits::{LookaheadRule, VelocityLimits};
 use trapq::Vec3;
 
 /// Extrude-only moves accelerate "instantly" (Klipper's sentinel acceleration).
@@ -205,20 +205,32 @@ struct Junction {
     end_v2: f64,
 }
 
+/// A move that cannot accelerate, waiting for the peak before it (Kalico's rule): its index, start and end speed².
+#[derive(Debug, Clone, Copy)]
+struct Delayed {
+    index: usize,
+    start_v2: f64,
+    end_v2: f64,
+}
+
 /// Moves waiting for their speeds to be fixed.
 #[derive(Debug, Default)]
 pub struct LookAhead {
     queue: std::collections::VecDeque<Move>,
     junction_flush: f64,
     scratch: Vec<Junction>,
+    rule: LookaheadRule,
+    delayed: Vec<Delayed>,
 }
 
 impl LookAhead {
-    pub fn new() -> Self {
+    pub fn new(rule: LookaheadRule) -> Self {
         LookAhead {
             queue: Default::default(),
             junction_flush: BUFFER_TIME_HIGH,
             scratch: Vec::new(),
+            rule,
+            delayed: Vec::new(),
         }
     }
 
@@ -262,6 +274,9 @@ impl LookAhead {
     /// queue are final; the caller reads them with [`Self::ready`] and then [`Self::release`]s them (no copy).
     pub fn flush(&mut self, lazy: bool) -> usize {
         self.junction_flush = LOOKAHEAD_FLUSH_TIME;
+        if self.rule == LookaheadRule::Kalico {
+            return self.flush_as_kalico(lazy);
+        }
         let mut update_flush_count = lazy;
         let mut flush_count = self.queue.len();
         self.scratch.clear();
@@ -327,6 +342,76 @@ impl LookAhead {
             prev_cruise_v2 = cruise_v2;
         }
         flush_count
+    }
+
+    /// [`Self::flush`] under [`LookaheadRule::Kalico`]: the same two tracks in one backward pass, each move's
+    /// speeds fixed as soon as the peak before it is known.
+    fn flush_as_kalico(&mut self, lazy: bool) -> usize {
+        let mut update_flush_count = lazy;
+        let mut flush_count = self.queue.len();
+        self.delayed.clear();
+        let (mut next_end_v2, mut next_mcr_start_v2, mut peak_cruise_v2) = (0.0, 0.0, 0.0);
+        for i in (0..self.queue.len()).rev() {
+            let mv = &self.queue[i];
+            let (delta_v2, mcr_delta_v2, max_cruise_v2) =
+                (mv.delta_v2, mv.mcr_delta_v2, mv.max_cruise_v2);
+            let reachable_start_v2 = next_end_v2 + delta_v2;
+            let start_v2 = mv.max_start_v2.min(reachable_start_v2);
+            let reachable_mcr_start_v2 = next_mcr_start_v2 + mcr_delta_v2;
+            let mcr_start_v2 = mv.max_mcr_start_v2.min(reachable_mcr_start_v2);
+            if mcr_start_v2 < reachable_mcr_start_v2 {
+                // This move can accelerate.
+                if mcr_start_v2 + mcr_delta_v2 > next_mcr_start_v2 || !self.delayed.is_empty() {
+                    // It can decelerate too, or it is a full acceleration after a full deceleration.
+                    if update_flush_count && peak_cruise_v2 != 0.0 {
+                        flush_count = i;
+                        update_flush_count = false;
+                    }
+                    peak_cruise_v2 =
+                        max_cruise_v2.min((mcr_start_v2 + reachable_mcr_start_v2) * 0.5);
+                    if !update_flush_count && i < flush_count {
+                        self.plan_delayed(peak_cruise_v2);
+                    }
+                    self.delayed.clear();
+                }
+                if !update_flush_count && i < flush_count {
+                    let cruise_v2 = ((start_v2 + reachable_start_v2) * 0.5)
+                        .min(max_cruise_v2)
+                        .min(peak_cruise_v2);
+                    self.queue[i].set_junction(
+                        start_v2.min(cruise_v2),
+                        cruise_v2,
+                        next_end_v2.min(cruise_v2),
+                    );
+                }
+            } else {
+                // Planned with the next peak found further back.
+                self.delayed.push(Delayed {
+                    index: i,
+                    start_v2,
+                    end_v2: next_end_v2,
+                });
+            }
+            next_end_v2 = start_v2;
+            next_mcr_start_v2 = mcr_start_v2;
+        }
+        if update_flush_count {
+            return 0;
+        }
+        flush_count
+    }
+
+    /// The waiting moves, first to last, cruise at the peak before them or lower where one must start slower.
+    fn plan_delayed(&mut self, peak_cruise_v2: f64) {
+        let mut cruise_v2 = peak_cruise_v2;
+        for d in self.delayed.iter().rev() {
+            cruise_v2 = cruise_v2.min(d.start_v2);
+            self.queue[d.index].set_junction(
+                d.start_v2.min(cruise_v2),
+                cruise_v2,
+                d.end_v2.min(cruise_v2),
+            );
+        }
     }
 
     /// The first `count` queued moves (those a [`Self::flush`] made final), in order.
@@ -395,5 +480,26 @@ mod tests {
         assert!(!mv.is_kinematic);
         assert_eq!(mv.end_pos, [0.0, 0.0, 0.0, 0.5]);
         assert_eq!(mv.move_d, 0.5);
+    }
+
+    /// From rest, 0.3 mm at up to 100 mm/s, then straight on at 20 mm/s (the junction at 20 mm/s). The short move
+    /// can only accelerate on the minimum-cruise-ratio track, so it cruises at the mean of its reachable speeds²
+    /// (0 and 20² + 2·0.3·1000: √500) capped by the slow move's peak: Klipper's peak is that track's alone,
+    /// Kalico's is also capped by the slow move's own limit (20 mm/s).
+    #[test]
+    fn a_short_move_before_a_slow_one_peaks_by_the_hosts_rule() {
+        let l = limits();
+        let cruise = |rule: LookaheadRule| {
+            let a = Move::new([0.0; 4], [0.3, 0.0, 0.0, 0.0], 100.0, &l, 1).expect("moves");
+            let mut b = Move::new(a.end_pos, [10.0, 0.0, 0.0, 0.0], 20.0, &l, 2).expect("moves");
+            b.calc_junction(&a, f64::INFINITY);
+            let mut queue = LookAhead::new(rule);
+            queue.push(a);
+            queue.push(b);
+            assert_eq!(queue.flush(false), 2);
+            queue.ready(1).next().expect("first move").plan.cruise_v
+        };
+        assert!((cruise(LookaheadRule::Klipper) - 500f64.sqrt()).abs() < 1e-12);
+        assert!((cruise(LookaheadRule::Kalico) - 20.0).abs() < 1e-12);
     }
 }

@@ -123,11 +123,11 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             },
             need_check_pause: -1.0,
             slow_moves: SlowMoves::default(),
+            lookahead: LookAhead::new(config.lookahead),
             config,
             kinematics,
             sink,
             sink_error: None,
-            lookahead: LookAhead::new(),
             commanded_pos: [0.0; 4],
             bed_ray: [1.0, 0.0],
             print_time: 0.0,
@@ -337,8 +337,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
 
     /// The motors' cap on the junction speed² (see [`kinematic_limits::junction_v2`]).
     fn motor_junction_v2(&self, prev: &Move, mv: &Move) -> f64 {
-        let limits = &self.config.kinematic_limits;
-        if !(prev.is_kinematic && mv.is_kinematic) || limits.iter().all(|l| l.max_accel.is_none()) {
+        if !(prev.is_kinematic && mv.is_kinematic) {
             return f64::INFINITY;
         }
         let side = |m: &Move| kinematic_limits::JunctionSide {
@@ -346,6 +345,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             end: xyz(m.end_pos),
             accel: m.accel,
         };
+        let limits = &self.config.kinematic_limits;
         kinematic_limits::junction_v2(self.kinematics, limits, side(prev), side(mv))
     }
 

@@ -1,7 +1,12 @@
 //! `jointspace_scara` on the FEKT-SCARA fork against the FEKT module's own steps: the shared `scara-fekt-*`
 //! golden cases, exact mode (step compression 0), Z limits raised where the fork ignores them.
 
-use crate::hosts::{Hosts, KALICO_FEKT, assert_same_steps, plugin_config, read_step_dir, shared};
+use std::process::Command;
+
+use crate::engine::jointspace;
+use crate::hosts::{
+    Hosts, KALICO_FEKT, assert_same_steps, plugin_config, read_step_dir, shared, write,
+};
 
 fn golden_case(case: &str) {
     let Some(hosts) = Hosts::get(case) else {
@@ -50,4 +55,47 @@ fn fekt_synthetic_steps_are_the_fekt_modules() {
 #[test]
 fn fekt_cura_hex_steps_are_the_fekt_modules() {
     golden_case("scara-fekt-cura-hex");
+}
+
+/// From a Slic3r benchy late in the print (lines 13,746–13,755, moved into the arm's workspace): a short travel that
+/// reverses onto a slow, nearly collinear extrusion. Kalico's lookahead caps the travel's peak at the slow move's
+/// speed (20 mm/s) where Klipper's would let it reach 22.4 mm/s, and every later move starts 96 µs apart.
+/// `jointspace run --host kalico-fekt` plans as the fork: its steps are the fork's own (FEKT module, exact mode).
+#[test]
+fn a_travel_before_a_slow_move_peaks_as_the_forks_lookahead() {
+    let Some(hosts) = Hosts::get("a_travel_before_a_slow_move_peaks_as_the_forks_lookahead") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let golden = shared().join("golden/scara-fekt-cura-hex");
+    let text = std::fs::read_to_string(golden.join("printer.cfg")).expect("golden config");
+    let config = write(dir.path(), "printer.cfg", &text);
+    let gcode = write(
+        dir.path(),
+        "reversal.gcode",
+        "SET_KINEMATIC_POSITION X=0 Y=130 Z=0.5\nG92 E0\nG1 Z0.3 F600\nG1 X8.913 Y115.219 F6600\nG1 X8.958 Y115.634\n\
+         G1 X8.488 Y115.743\nG1 F1200\nG1 X8.398 Y115.698 E0.05\nG1 X8.488 Y115.743 F6600\nG1 F1200\n\
+         G1 X9.637 Y116.200 E0.1\nG1 X8.109 Y115.686 F6600\nG1 X20 Y130 E0.3 F1200\nM400\n",
+    );
+    let run = hosts.batch(KALICO_FEKT, true, &config, &gcode, &dir.path().join("fork"));
+    run.expect_success("the fork");
+    let ours = dir.path().join("ours");
+    let output = Command::new(jointspace())
+        .arg("run")
+        .arg("-c")
+        .arg(&config)
+        .args(["--host", "kalico-fekt", "--klipper-batch", "--steps"])
+        .arg(&ours)
+        .arg(&gcode)
+        .output()
+        .expect("jointspace runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let worst = assert_same_steps("reversal", &run.steps(), &read_step_dir(&ours), 1);
+    println!(
+        "a travel before a slow move: the fork's steps, largest clock difference {worst} ticks"
+    );
 }

@@ -142,6 +142,63 @@ fn through_the_centre_the_bed_turns_in_place() {
     );
 }
 
+/// The bed's peak speed and acceleration from its steps: speed over windows of 16 steps the same way, and
+/// acceleration between consecutive windows (as jointspace's own planner tests read them).
+fn bed_rates(run: &Run) -> (f64, f64) {
+    let steps = run.steps();
+    let step_dist = std::f64::consts::TAU / 16000.0;
+    let t: Vec<(f64, i8)> = steps["stepper_bed"]
+        .iter()
+        .map(|&(clock, dir)| (clock as f64 / 16e6, dir))
+        .collect();
+    let w = 16;
+    let speeds: Vec<(f64, f64)> = t
+        .chunks_exact(w + 1)
+        .filter(|c| c.iter().all(|s| s.1 == c[0].1))
+        .map(|c| {
+            let (t0, t1) = (c[0].0, c[w].0);
+            ((t0 + t1) / 2.0, w as f64 * step_dist / (t1 - t0))
+        })
+        .collect();
+    let omega = speeds.iter().map(|s| s.1).fold(0.0, f64::max);
+    let alpha = speeds
+        .windows(2)
+        .map(|p| ((p[1].1 - p[0].1) / (p[1].0 - p[0].0)).abs())
+        .fold(0.0, f64::max);
+    (omega, alpha)
+}
+
+/// Corners beside the centre (0.1 and 1 mm from it) change the bed's speed at once; with `max_angular_accel` the
+/// plug-in caps those corners (Klipper's `limit_next_junction_speed`) so that the jump fits the acceleration the
+/// moves leave: the bed, read from the steps Klipper sends, stays within its limits.
+#[test]
+fn corners_beside_the_centre_keep_the_bed_within_its_acceleration() {
+    let Some(hosts) = Hosts::get("corners_beside_the_centre_keep_the_bed_within_its_acceleration")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut gcode = String::from("SET_KINEMATIC_POSITION X=100 Y=0 Z=1\nG90\n");
+    for d in [0.1, 1.0] {
+        for (x, y) in [(60.0, 80.0), (-100.0, 10.0), (20.0, -100.0)] {
+            gcode.push_str(&format!(
+                "G1 X-100 Y{d} F6000\nG1 X0 Y{d}\nG1 X{x} Y{y}\nG1 X100 Y{d}\n"
+            ));
+        }
+    }
+    gcode.push_str("M400\n");
+    let input = write(dir.path(), "corners.gcode", &gcode);
+    let alpha_limit = 100.0;
+    let limits = format!("max_angular_velocity: {LIMIT}\nmax_angular_accel: {alpha_limit}");
+    let ours = polar_config(dir.path(), "ours.cfg", "jointspace_polar", &limits);
+    let run = hosts.batch(KLIPPER, true, &ours, &input, &dir.path().join("ours"));
+    run.expect_success("corners beside the centre");
+    let (omega, alpha) = bed_rates(&run);
+    println!("corners beside the centre: bed peak {omega:.3} rad/s, {alpha:.1} rad/s²");
+    assert!(omega <= LIMIT * 1.01, "bed at {omega} rad/s");
+    assert!(alpha <= alpha_limit * 1.01, "bed at {alpha} rad/s²");
+}
+
 /// bed_mesh chained after the transform: a mesh profile raises Z where it says, on moves the transform cut.
 #[test]
 fn bed_mesh_still_applies() {

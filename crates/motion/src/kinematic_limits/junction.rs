@@ -23,6 +23,9 @@ pub fn junction_v2(
     incoming: JunctionSide,
     outgoing: JunctionSide,
 ) -> f64 {
+    if limits.iter().all(|l| l.max_accel.is_none()) {
+        return f64::INFINITY;
+    }
     let lines = (
         Line::new(incoming.start, incoming.end),
         Line::new(outgoing.start, outgoing.end),

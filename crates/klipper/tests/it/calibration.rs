@@ -2,9 +2,9 @@
 //! file; filled in with where an arm built differently from its config really puts each cross, `jointspace
 //! calibrate scara` recovers how it was built.
 
-use std::process::Command;
+use std::ffi::OsStr;
 
-use crate::engine::jointspace;
+use crate::engine::run_jointspace;
 use crate::hosts::{Hosts, KLIPPER, workspace_root, write};
 
 /// Where the arm as built (link 1 100.4 mm instead of 100, shoulder at (0.3, −0.2), ECR 3) puts the nozzle for
@@ -61,20 +61,16 @@ fn scara_pattern_on_the_printer_then_identification() {
     assert_eq!(rows, 10, "{template}");
     let measurements = write(dir.path(), "measured.csv", &filled);
     let result = dir.path().join("scara.json");
-    let output = Command::new(jointspace())
-        .args(["calibrate", "scara", "-c"])
-        .arg(&config)
-        .arg("--measurements")
-        .arg(&measurements)
-        .arg("-o")
-        .arg(&result)
-        .output()
-        .expect("jointspace runs");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    run_jointspace([
+        OsStr::new("calibrate"),
+        OsStr::new("scara"),
+        OsStr::new("-c"),
+        config.as_os_str(),
+        OsStr::new("--measurements"),
+        measurements.as_os_str(),
+        OsStr::new("-o"),
+        result.as_os_str(),
+    ]);
     let json = std::fs::read_to_string(&result).expect("result");
     let number = |key: &str| -> f64 {
         let at = json

@@ -5,14 +5,13 @@
 //! whose true offsets the result must give back), and the detections file it writes is re-read by
 //! `jointspace calibrate centre --scan`.
 
-use std::ffi::{CStr, c_char};
-use std::process::Command;
+use std::ffi::{CStr, OsStr, c_char};
 
 use jointspace_klipper::scan::HallScanSettings;
 use jointspace_klipper::{jointspace_scan_centre, jointspace_scan_passes};
 use sim::hall::{HallBedConfig, HallScanner, Ky024, SweepMotion};
 
-use crate::engine::jointspace;
+use crate::engine::run_jointspace;
 use crate::hosts::{Hosts, KLIPPER, workspace_root, write};
 
 /// The settings `[jointspace] hall_*` gives for the simulated sensor (a KY-024 on a 5 V ADC).
@@ -125,18 +124,16 @@ fn simulated_sweeps_give_the_offsets_back_through_the_detections_file() {
         assert!(error <= 0.005, "seed {seed}: error {error} mm");
         // The file the command writes, read by the command line as a user would.
         let file = write(dir.path(), &format!("scan-{seed}.csv"), &outcome.csv);
-        let output = Command::new(jointspace())
-            .args(["calibrate", "centre", "--json", "--scan"])
-            .arg(&file)
-            .arg("-o")
-            .arg(dir.path().join(format!("centre-{seed}.json")))
-            .output()
-            .expect("jointspace runs");
-        assert!(
-            output.status.success(),
-            "{}",
-            String::from_utf8_lossy(&output.stderr)
-        );
+        let centre = dir.path().join(format!("centre-{seed}.json"));
+        let output = run_jointspace([
+            OsStr::new("calibrate"),
+            OsStr::new("centre"),
+            OsStr::new("--json"),
+            OsStr::new("--scan"),
+            file.as_os_str(),
+            OsStr::new("-o"),
+            centre.as_os_str(),
+        ]);
         let json = String::from_utf8_lossy(&output.stdout);
         for (key, value) in [
             ("arm_zero_offset", truth[0]),

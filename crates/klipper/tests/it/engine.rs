@@ -2,8 +2,9 @@
 //! printer.cfg: one SCARA print and one polar print with both assembly offsets, exact mode. Two step generators
 //! (Klipper's itersolve over our solver; jointspace's own) must agree step for step.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 use jointspace_klipper::abi::Move;
 use jointspace_klipper::machine::Machine;
@@ -18,6 +19,25 @@ use crate::hosts::{
 pub fn jointspace() -> PathBuf {
     cargo_build("cli");
     target_dir().join("jointspace")
+}
+
+/// Runs the `jointspace` command line with `args`; panics with its output unless it succeeds.
+pub fn run_jointspace<I, A>(args: I) -> Output
+where
+    I: IntoIterator<Item = A>,
+    A: AsRef<OsStr>,
+{
+    let output = Command::new(jointspace())
+        .args(args)
+        .output()
+        .expect("jointspace runs");
+    assert!(
+        output.status.success(),
+        "jointspace failed: {}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    output
 }
 
 /// The toolhead's pieces of a moves CSV (jointspace's own reader of Klipper's `trapq_append` columns).
@@ -113,23 +133,17 @@ fn compare_with_engine(test: &str, config: &Path, start: [f64; 3], gcode: &Path,
     run.expect_success(test);
     let ours = dir.join("engine");
     let moves = dir.join("moves.csv");
-    let output = Command::new(jointspace())
-        .arg("run")
-        .arg("-c")
-        .arg(config)
-        .arg("--klipper-batch")
-        .arg("--steps")
-        .arg(&ours)
-        .arg("--moves")
-        .arg(&moves)
-        .arg(gcode)
-        .output()
-        .expect("jointspace runs");
-    assert!(
-        output.status.success(),
-        "{test}: jointspace run failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    run_jointspace([
+        OsStr::new("run"),
+        OsStr::new("-c"),
+        config.as_os_str(),
+        OsStr::new("--klipper-batch"),
+        OsStr::new("--steps"),
+        ours.as_os_str(),
+        OsStr::new("--moves"),
+        moves.as_os_str(),
+        gcode.as_os_str(),
+    ]);
     let (klipper, engine) = (run.steps(), read_step_dir(&ours));
     let mut beyond = 0;
     for (name, steps) in &klipper {

@@ -1,10 +1,10 @@
 //! The example printer.cfg files of `klipper/examples/` load in Klipper and Kalico, home and print a circle with
 //! extrusion; the `jointspace` command line reads the same files (one printer.cfg serves both).
 
+use std::ffi::OsStr;
 use std::path::Path;
-use std::process::Command;
 
-use crate::engine::jointspace;
+use crate::engine::run_jointspace;
 use crate::hosts::{Hosts, KALICO, KLIPPER, workspace_root, write};
 
 const POLAR_CIRCLE: &str = "G28\nG90\nM83\nG1 Z0.3 F600\nG1 X50 Y0 F6000\nG2 X50 Y0 I-50 J0 E10 F3000\nG1 X20 Y5 F6000\nG1 X-20 Y5 E2\nM400\n";
@@ -35,20 +35,12 @@ fn example(name: &str, gcode: &str) {
 }
 
 fn check_with_cli(config: &Path, input: &Path) {
-    let output = Command::new(jointspace())
-        .arg("check")
-        .arg("-c")
-        .arg(config)
-        .arg(input)
-        .output()
-        .expect("jointspace runs");
-    assert!(
-        output.status.success(),
-        "jointspace check on {}: {}{}",
-        config.display(),
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    );
+    run_jointspace([
+        OsStr::new("check"),
+        OsStr::new("-c"),
+        config.as_os_str(),
+        input.as_os_str(),
+    ]);
 }
 
 #[test]

@@ -1,9 +1,9 @@
 //! `jointspace_scara` on the FEKT-SCARA fork against the FEKT module's own steps: the shared `scara-fekt-*`
 //! golden cases, exact mode (step compression 0), Z limits raised where the fork ignores them.
 
-use std::process::Command;
+use std::ffi::OsStr;
 
-use crate::engine::jointspace;
+use crate::engine::run_jointspace;
 use crate::hosts::{
     Hosts, KALICO_FEKT, assert_same_steps, plugin_config, read_step_dir, shared, write,
 };
@@ -80,20 +80,17 @@ fn a_travel_before_a_slow_move_peaks_as_the_forks_lookahead() {
     let run = hosts.batch(KALICO_FEKT, true, &config, &gcode, &dir.path().join("fork"));
     run.expect_success("the fork");
     let ours = dir.path().join("ours");
-    let output = Command::new(jointspace())
-        .arg("run")
-        .arg("-c")
-        .arg(&config)
-        .args(["--host", "kalico-fekt", "--klipper-batch", "--steps"])
-        .arg(&ours)
-        .arg(&gcode)
-        .output()
-        .expect("jointspace runs");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    run_jointspace([
+        OsStr::new("run"),
+        OsStr::new("-c"),
+        config.as_os_str(),
+        OsStr::new("--host"),
+        OsStr::new("kalico-fekt"),
+        OsStr::new("--klipper-batch"),
+        OsStr::new("--steps"),
+        ours.as_os_str(),
+        gcode.as_os_str(),
+    ]);
     let worst = assert_same_steps("reversal", &run.steps(), &read_step_dir(&ours), 1);
     println!(
         "a travel before a slow move: the fork's steps, largest clock difference {worst} ticks"

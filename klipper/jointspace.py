@@ -242,6 +242,9 @@ class Machine:
             return self._limits[0], self._limits[1]
         return None
 
+    def rests_at(self, pos):
+        return bool(self.lib.jointspace_rests_at(self.handle, pos[0], pos[1], pos[2]))
+
     def junction_speed(self, prev_start, corner, prev_accel, next_end, next_accel):
         """The highest speed at the corner (inf where nothing caps it)."""
         for i, point in enumerate((prev_start, corner, next_end)):
@@ -466,6 +469,9 @@ class JointspaceKinematics:
                 raise move.move_error("Move out of range (%s)" % (e,))
             if limits is not None:
                 move.limit_speed(limits[0], limits[1])
+            if self.machine.rests_at(end):
+                # A pose the arm may only rest at (nearly straight or folded): the move ends there at rest.
+                move.limit_next_junction_speed(0.)
             if not exact:
                 self.klipper_centre_slowdown(move)
         if exact:

@@ -347,6 +347,13 @@ pub unsafe extern "C" fn jointspace_junction_speed(
     if speed.is_nan() { f64::INFINITY } else { speed }
 }
 
+/// 1 when the toolhead may only rest at `(x, y, z)` (a SCARA's nearly straight or folded arm: a move ending there
+/// must end at rest), else 0.
+#[unsafe(no_mangle)]
+pub extern "C" fn jointspace_rests_at(m: *const Machine, x: f64, y: f64, z: f64) -> c_int {
+    machine(m).is_some_and(|m| m.rests_at([x, y, z])) as c_int
+}
+
 /// The pose the config declares for homing (FEKT-SCARA's `home_position`) into `xyz[3]`: 0, or −1 if none.
 ///
 /// # Safety

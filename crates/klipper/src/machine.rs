@@ -148,14 +148,6 @@ impl Machine {
     ) -> Result<MoveVerdict, String> {
         let kin = self.kinematics();
         kin.check_segment(start, end).map_err(|e| e.to_string())?;
-        if kin.rests_at(end) && start != end {
-            // jointspace's planner stops the arm at such a pose; Klipper's cannot be told to, and arriving there
-            // at speed would spin the joints without bound. Leaving it (after homing to it) is fine: from rest.
-            return Err(format!(
-                "({:.3}, {:.3}) is a pose the arm may only reach at rest (nearly straight or folded)",
-                end[0], end[1]
-            ));
-        }
         let spans = split(
             kin,
             self.motor_limits(),
@@ -171,6 +163,12 @@ impl Machine {
         let speed = spans.iter().map(|s| s.max_speed).fold(speed, f64::min);
         let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
         Ok(MoveVerdict::Limited { speed, accel })
+    }
+
+    /// Whether the toolhead may only rest at `p` (a SCARA's nearly straight or folded arm): a move ending there
+    /// must end at rest, as jointspace's planner makes it (the plug-in sets Klipper's next junction to zero).
+    pub fn rests_at(&self, p: [f64; 3]) -> bool {
+        self.kinematics().rests_at(p)
     }
 
     /// The highest speed (mm/s) at the corner where the move `points[0] → points[1]` (planned with acceleration

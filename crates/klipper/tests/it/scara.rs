@@ -96,3 +96,55 @@ fn a_travel_before_a_slow_move_peaks_as_the_forks_lookahead() {
         "a travel before a slow move: the fork's steps, largest clock difference {worst} ticks"
     );
 }
+
+/// The FEKT arm homes to the straight arm, a pose it may only rest at. Inside Klipper the plug-in ends every move
+/// that arrives there at rest (Klipper's next junction set to zero) and caps the part beside it as an acceleration
+/// from rest: with `max_joint_velocity: 5` the arm leaves the pose, comes back to the band (Y199.99) and to the
+/// pose itself, and each joint, read from the steps Klipper sends, stays within 5 rad/s.
+#[test]
+fn the_arm_reaches_and_leaves_the_straight_pose_at_rest() {
+    let Some(hosts) = Hosts::get("the_arm_reaches_and_leaves_the_straight_pose_at_rest") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = plugin_config(
+        &shared().join("golden/scara-fekt-synthetic/printer.cfg"),
+        &[(
+            "kinematics: scara",
+            "kinematics: jointspace_scara\nmax_joint_velocity: 5",
+        )],
+        dir.path(),
+        "printer.cfg",
+    );
+    let gcode = write(
+        dir.path(),
+        "straight.gcode",
+        "G28\nG1 X0 Y150 F6000\nG1 X0 Y199.99\nG1 X0 Y150\nG1 X0 Y200\nG1 X20 Y150\nM400\nGET_POSITION\n",
+    );
+    let run = hosts.batch(
+        crate::hosts::KLIPPER,
+        true,
+        &config,
+        &gcode,
+        &dir.path().join("out"),
+    );
+    run.expect_success("to the straight arm and back");
+    assert!(
+        run.log.contains("toolhead: X:20.000000 Y:150.000000"),
+        "{}",
+        crate::hosts::tail(&run.log, 20)
+    );
+    let step = std::f64::consts::TAU / 9600.0;
+    for (name, steps) in run.steps() {
+        if !name.starts_with("stepper_a") && !name.starts_with("stepper_b") {
+            continue;
+        }
+        let peak = steps
+            .windows(17)
+            .filter(|w| w.iter().all(|s| s.1 == w[0].1))
+            .map(|w| 16.0 * step * 16e6 / (w[16].0 - w[0].0) as f64)
+            .fold(0.0, f64::max);
+        println!("{name}: peak {peak:.3} rad/s");
+        assert!(peak <= 5.0 * 1.01, "{name} at {peak} rad/s");
+    }
+}

@@ -227,6 +227,7 @@ impl MachineConfig {
             .transpose()?;
         if let Some(extruder) = &extruder {
             steppers.push(extruder.stepper.clone());
+            warn_pressure_advance(&document, extruder, &mut warnings);
         }
         let arcs = document.section("gcode_arcs").map(read_arcs).transpose()?;
         warn_ignored_steppers(&document, kinematics, &steppers, &mut warnings);
@@ -649,6 +650,28 @@ fn read_arcs(section: &Section) -> Result<ArcConfig, ConfigError> {
     Ok(ArcConfig {
         resolution: section.get_f64_or("resolution", 1.0, Bounds::NONE.above(0.0))?,
     })
+}
+
+/// Pressure advance shifts the extruder's steps in time (Klipper smooths the extrusion rate); jointspace plans and
+/// steps the nominal extrusion, so a config that sets it is told its extruder steps will differ from Klipper's.
+fn warn_pressure_advance(
+    document: &ConfigDocument,
+    extruder: &ExtruderConfig,
+    warnings: &mut Vec<ConfigWarning>,
+) {
+    if extruder.pressure_advance == 0.0 {
+        return;
+    }
+    let span = document
+        .section("extruder")
+        .and_then(|s| s.entry("pressure_advance"))
+        .map(|e| e.key_span().clone());
+    warnings.push(ConfigWarning {
+        span,
+        message: "pressure_advance is not modelled: the extruder's steps follow the nominal extrusion, not \
+                  Klipper's pressure-advanced one (moves and the other motors are unaffected)"
+            .into(),
+    });
 }
 
 /// Warns about `[stepper_*]` sections the kinematics do not use (e.g. a second Z motor `stepper_z1`).

@@ -316,6 +316,26 @@ fn extruder_defaults_from_nozzle_and_filament() {
 }
 
 #[test]
+fn pressure_advance_is_warned_about_at_its_key() {
+    let base = polar("")
+        + "\n[extruder]\nstep_pin: PA4\ndir_pin: PA6\nmicrosteps: 16\nrotation_distance: 33.5\nnozzle_diameter: 0.4\nfilament_diameter: 1.75\nheater_pin: PB4\n";
+    assert!(machine(&base).warnings.is_empty());
+    let m = machine(&(base.clone() + "pressure_advance: 0.05\n"));
+    assert_eq!(m.warnings.len(), 1);
+    let warning = &m.warnings[0];
+    assert!(
+        warning.message.contains("pressure_advance is not modelled"),
+        "{warning}"
+    );
+    let line = base.lines().count() + 1;
+    assert_eq!(
+        warning.span.as_ref().map(|s| s.line),
+        Some(line),
+        "{warning}"
+    );
+}
+
+#[test]
 fn misspelt_keys_are_reported_as_unused() {
     let m = machine(&polar("max_velocty: 200"));
     let unused = m.unused_keys();

@@ -92,6 +92,8 @@ pub struct Toolhead<'k, S: MoveSink> {
     /// Polar machines: the last position off the centre, relative to it, whose angle is the bed angle the motors
     /// hold (the angle itself is computed only when the bed must turn); on the centre the bed keeps it.
     bed_ray: [f64; 2],
+    /// Some motor has an acceleration limit, so corners are capped ([`kinematic_limits::junction_v2`]).
+    corners_capped: bool,
 }
 
 /// Klipper's motion-queuing bookkeeping: how far step generation has been flushed. In batch mode
@@ -124,6 +126,10 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             need_check_pause: -1.0,
             slow_moves: SlowMoves::default(),
             lookahead: LookAhead::new(config.lookahead),
+            corners_capped: config
+                .kinematic_limits
+                .iter()
+                .any(|l| l.max_accel.is_some()),
             config,
             kinematics,
             sink,
@@ -337,7 +343,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
 
     /// The motors' cap on the junction speed² (see [`kinematic_limits::junction_v2`]).
     fn motor_junction_v2(&self, prev: &Move, mv: &Move) -> f64 {
-        if !(prev.is_kinematic && mv.is_kinematic) {
+        if !(self.corners_capped && prev.is_kinematic && mv.is_kinematic) {
             return f64::INFINITY;
         }
         let side = |m: &Move| kinematic_limits::JunctionSide {

@@ -78,26 +78,19 @@ pub fn split(
         };
         rest.fit(&line, rests, &mut raw);
     }
-    let mut spans: Vec<Span> = Vec::with_capacity(raw.len());
-    for span in raw {
-        push_merged(&mut spans, span);
-    }
+    // Neighbours with equal caps are one span.
+    raw.dedup_by(|next, kept| {
+        let same = kept.max_speed == next.max_speed && kept.max_accel == next.max_accel;
+        if same {
+            kept.end = next.end;
+        }
+        same
+    });
+    let spans = raw;
     let binds = spans
         .iter()
         .any(|s| s.max_speed < speed || s.max_accel < accel);
     if binds { spans } else { Vec::new() }
-}
-
-/// Append `span`, joining it to the previous one when their caps are equal.
-fn push_merged(spans: &mut Vec<Span>, span: Span) {
-    if let Some(last) = spans.last_mut()
-        && last.max_speed == span.max_speed
-        && last.max_accel == span.max_accel
-    {
-        last.end = span.end;
-        return;
-    }
-    spans.push(span);
 }
 
 /// The caps of the span `s0..s1` from every motor's bounds over it. Beside a rest pose the sampled motors are

@@ -10,28 +10,35 @@
 //! above over a stretch of the line (ρ² is a quadratic in `s`, so its range is exact) either excludes zero or
 //! the stretch is halved, down to a stretch of ~1e-13 s of travel around each turning point. On a run the
 //! motor is monotonic, so its steps are exactly those of [`StepRule::monotonic`]; each crossing is found
-//! by Newton's method on that one motor, started from the previous crossing with a second-order prediction
-//! and kept inside a bracket (bisection when Newton leaves it), so a crossing can be neither missed nor
-//! taken out of order. Levels go two at a time (`Crossings::try_pair`): both predicted from the last
-//! crossing and evaluated from the last point, so the CPU overlaps their serial chains; each passes the same
-//! acceptance test or is solved alone. Typically one evaluation per step (1.04 on `scara-fekt-synthetic`);
-//! the general solver made about five of all motors, plus 17+ Jacobian samples per span.
+//! by Newton's method on that one motor, worked on the run's inverse (distance as a function of the motor:
+//! a step is `ds/d(motor)` times the level's miss, no division), started from the last evaluated point with
+//! a second-order prediction and kept inside a bracket (bisection when Newton leaves it), so a crossing can
+//! be neither missed nor taken out of order. Levels go two at a time (`Crossings::try_pair`): both
+//! predicted from the last crossing and evaluated from the last point side by side in the two lanes of
+//! packed arithmetic (`lanes.rs`), so one set of instructions serves both and their serial chains overlap;
+//! each takes Newton's steps from its own evaluation until the step lands within the tolerance (nearly
+//! always the first). Typically one evaluation per step; the general solver made about five of all
+//! motors, plus 17+ Jacobian samples per span.
 //!
 //! Run ends are evaluated with the arithmetic of `ScaraGeometry::joints` and `motors_from_joints` and
 //! unwrapped as `Kinematics::inverse_near` does (near the previous evaluation; across a long run, near the
 //! continued angle), so the motor function is the one the general solver crossed. Newton's evaluations go
-//! from the previous point by angle increments (cross and dot products, a short `atan` series: no libm
-//! call), in full every [`CHAIN`] evaluations; they differ from a full evaluation by ~1e-16 rad. A span that
+//! from the previous point by angle increments (the turns of link 1 and of the elbow are arguments of
+//! complex products, tangents over one division, a short `atan` series: no libm call), summed apart from
+//! the last full evaluation's value, in full every [`CHAIN`] evaluations; they differ from a full
+//! evaluation by a few 1e-16 rad. A span that
 //! comes within 1e-12 of the arm's reach limits (`|cos q2| → 1`) goes to the general solver, which reports
 //! unreachable points as before.
 
 mod joint_line;
+mod lanes;
 
 use kinematics::scara::{SHOULDER, ScaraGeometry, ScaraJoint};
 use kinematics::{Kinematics, ReachError};
 use trapq::Piece;
 
-use self::joint_line::{JointLine, Point};
+use self::joint_line::{JointLine, Point, Probe};
+use self::lanes::Lanes;
 
 use crate::error::StepError;
 use crate::general::GeneralState;
@@ -43,12 +50,15 @@ use crate::timing::{Span, clamp_between};
 const ROOT_TIME_TOL: f64 = 1e-13;
 /// Most stretches pending in the run search (each halving adds one; 2⁻⁹⁰ of a span is far below `tol`).
 const STACK: usize = 96;
-/// Evaluations by increments between two full ones (each adds at most a few 1e-17 rad of rounding).
-const CHAIN: u32 = 32;
+/// Evaluations by increments between two full ones: their sum rounds at its own size, under 1e-17 rad
+/// per increment of a step or two, so a chain stays within a few 1e-15 rad of full evaluations.
+const CHAIN: u32 = 256;
 /// Newton iterations before giving up on convergence (bisection alone needs ~60 for any span).
 const MAX_ITERATIONS: usize = 200;
 
 /// The crossings of one run, where the motor is monotonic: Newton from the previous crossing in a bracket.
+/// Distances `s` are functions of the motor level here (the run's inverse): predictions and the acceptance
+/// test use ds/d(motor) and its rate of change, so a Newton step is a product.
 struct Crossings<'a> {
     line: &'a JointLine,
     span: &'a Span,
@@ -59,16 +69,14 @@ struct Crossings<'a> {
     end: f64,
     /// +1 when the motor rises along the travel.
     rising: f64,
-    /// The last crossing: distance, level and motor rate.
+    /// The last evaluated point of an accepted crossing: distance, motor level and ds/d(motor).
     prev: (f64, f64, f64),
-    /// `1 / rate` at the last crossing (the next prediction's step without a division).
-    inv_slope: f64,
     /// `1 / (0.1·min(L1, L2))`: a curvature no motor function that matters here exceeds (acceptance slack).
     inv_length: f64,
-    /// Estimate of d²(motor)/ds², from successive crossings.
-    curvature: f64,
+    /// Estimate of d²s/d(motor)², from successive crossings.
+    bend: f64,
     /// The last evaluated point, and how many evaluations have been chained from it since the last full one.
-    anchor: Point,
+    anchor: Probe,
     chained: u32,
     /// Distance tolerance of a crossing.
     tol: f64,
@@ -78,19 +86,15 @@ struct Crossings<'a> {
 impl Crossings<'_> {
     /// Whether `x` lies in the closed bracket.
     fn inside(&self, x: f64) -> bool {
-        let (lo, hi) = if self.before <= self.after {
-            (self.before, self.after)
-        } else {
-            (self.after, self.before)
-        };
-        x >= lo && x <= hi
+        between(x, self.before, self.after)
     }
 
-    /// First guess for `level`: the previous crossing advanced by a second-order Taylor step.
+    /// First guess for `level`: the last evaluated point advanced by a second-order Taylor step of the inverse.
+    #[inline]
     fn predict(&self, level: f64) -> f64 {
-        let (s0, f0, _) = self.prev;
-        let dx = (level - f0) * self.inv_slope;
-        let guess = s0 + dx - 0.5 * self.curvature * dx * dx * self.inv_slope;
+        let (s0, f0, inv_slope) = self.prev;
+        let df = level - f0;
+        let guess = s0 + df * (inv_slope + 0.5 * self.bend * df);
         if guess.is_finite() {
             guess
         } else {
@@ -100,10 +104,15 @@ impl Crossings<'_> {
 
     /// Distance where the motor reaches `level`.
     fn solve(&mut self, level: f64) -> f64 {
-        let mut x = self.predict(level);
-        let mut last = (self.prev.0, self.prev.2, self.inv_slope);
+        let x = self.predict(level);
+        self.solve_from(level, x, self.prev)
+    }
+
+    /// [`Self::solve`] from the guess `x` (`last`: the last evaluated point, what the predictor learns from
+    /// if nothing else is evaluated).
+    fn solve_from(&mut self, level: f64, mut x: f64, mut last: (f64, f64, f64)) -> f64 {
         for _ in 0..MAX_ITERATIONS {
-            if !self.inside(x) || x == self.before || x == self.after {
+            if !strictly_between(x, self.before, self.after) {
                 x = 0.5 * (self.before + self.after);
             }
             let p = match self.evaluate(x) {
@@ -113,34 +122,44 @@ impl Crossings<'_> {
                     return x;
                 }
             };
-            let inv_slope = 1.0 / p.slope;
-            last = (x, p.slope, inv_slope);
-            let g = (p.f - level) * self.rising;
-            if g == 0.0 {
-                return self.accept(x, level, last);
+            last = (x, p.f, p.inv_slope);
+            match self.newton_step(level, x, &p) {
+                Newton::Root(root) => return self.accept(root, last),
+                Newton::Next(next) => x = next,
             }
-            if g < 0.0 {
-                self.before = x;
-            } else {
-                self.after = x;
-            }
-            let step = -(p.f - level) * inv_slope;
-            let next = x + step;
-            if self.step_lands(step, inv_slope) && self.inside(next) {
-                return self.accept(next, level, last);
-            }
-            if (self.after - self.before).abs() <= self.tol {
-                return self.accept(x, level, last);
-            }
-            x = next;
         }
-        self.accept(x, level, last)
+        self.accept(x, last)
+    }
+
+    /// Narrow the bracket with the evaluated point `x` (where the motor is `p`) and take one Newton step
+    /// towards `level`: the crossing when the step lands within the tolerance inside the bracket (or the
+    /// bracket is within it), else the next point to evaluate.
+    #[inline]
+    fn newton_step(&mut self, level: f64, x: f64, p: &Probe) -> Newton {
+        let g = (p.f - level) * self.rising;
+        if g == 0.0 {
+            return Newton::Root(x);
+        }
+        if g < 0.0 {
+            self.before = x;
+        } else {
+            self.after = x;
+        }
+        let df = level - p.f;
+        let next = x + df * p.inv_slope;
+        if self.step_lands(df, p.inv_slope) && self.inside(next) {
+            Newton::Root(next)
+        } else if (self.after - self.before).abs() <= self.tol {
+            Newton::Root(x)
+        } else {
+            Newton::Next(next)
+        }
     }
 
     /// The motor at `x`: from the last point by increments, in full every [`CHAIN`] evaluations (so the
     /// increments' rounding cannot add up) or when the increment is too large for the series.
     #[inline]
-    fn evaluate(&mut self, x: f64) -> Result<Point, ReachError> {
+    fn evaluate(&mut self, x: f64) -> Result<Probe, ReachError> {
         let near = if self.chained < CHAIN {
             self.line.eval_near(x, &self.anchor)
         } else {
@@ -153,53 +172,33 @@ impl Crossings<'_> {
             }
             None => {
                 self.chained = 0;
-                self.line.eval(x, self.anchor.q1)?
+                self.line.eval(x, self.anchor.q1)?.probe
             }
         };
         self.anchor = p;
         Ok(p)
     }
 
-    /// Whether a Newton step lands within the tolerance: its error is about |f''/(2f')|·step², with the curvature
-    /// estimate doubled and a floor on it.
+    /// Whether a Newton step of `df` in motor level (at inverse slope `inv_slope`) lands within the tolerance:
+    /// its error is about |s''|·df²/2, bounded with the estimate of `s''` quadrupled and a floor on the
+    /// motor's curvature (`s'' = −f''·s'³`).
     #[inline]
-    fn step_lands(&self, step: f64, inv_slope: f64) -> bool {
-        let kappa = (2.0 * self.curvature * inv_slope).abs() + self.inv_length;
-        step.is_finite() && step * step * kappa <= self.tol
+    fn step_lands(&self, df: f64, inv_slope: f64) -> bool {
+        let kappa = 2.0 * self.bend.abs() + self.inv_length * inv_slope * inv_slope;
+        df * df * kappa <= self.tol
     }
 
-    /// One Newton step from `x` (where the motor reads `f`, with inverse slope `inv_slope`) towards `level`, in
-    /// the bracket as [`Self::solve`] narrows it: the root when the step lands inside, within the tolerance.
+    /// Take `root` as the crossing found from the evaluated point `last` (distance, level, inverse slope).
     #[inline]
-    fn one_step_root(&self, x: f64, f: f64, level: f64, inv_slope: f64) -> Option<f64> {
-        let (mut lo, mut hi) = (self.before, self.after);
-        if !strictly_between(x, lo, hi) {
-            return None;
-        }
-        let g = (f - level) * self.rising;
-        if g == 0.0 {
-            return None;
-        }
-        if g < 0.0 {
-            lo = x;
-        } else {
-            hi = x;
-        }
-        let step = -(f - level) * inv_slope;
-        let root = x + step;
-        (self.step_lands(step, inv_slope) && between(root, lo, hi)).then_some(root)
-    }
-
-    fn accept(&mut self, root: f64, level: f64, last: (f64, f64, f64)) -> f64 {
-        let (s0, _, slope0) = self.prev;
-        if last.0 != s0 {
-            let curvature = (last.1 - slope0) / (last.0 - s0);
-            if curvature.is_finite() {
-                self.curvature = curvature;
+    fn accept(&mut self, root: f64, last: (f64, f64, f64)) -> f64 {
+        let (_, f0, inv_slope0) = self.prev;
+        if last.1 != f0 {
+            let bend = (last.2 - inv_slope0) / (last.1 - f0);
+            if bend.is_finite() {
+                self.bend = bend;
             }
         }
-        self.prev = (root, level, last.1);
-        self.inv_slope = last.2;
+        self.prev = last;
         // The next level lies between this crossing and the run end.
         self.before = root;
         self.after = self.end;
@@ -210,36 +209,51 @@ impl Crossings<'_> {
 impl Crossings<'_> {
     /// Two levels at once, both predicted from the last crossing and evaluated by increments from the last
     /// point, so neither evaluation waits for the other (one level's solve is one long serial dependency:
-    /// prediction, evaluation, Newton step). Each is accepted by the same test as in [`Self::solve`], in its
-    /// own bracket (the second's starts at the first's crossing). `None` when anything falls outside that
-    /// one-evaluation path; nothing has changed then, or only the first level is taken (`Err`).
+    /// prediction, evaluation, Newton step). Each takes Newton's steps from its evaluation, in its own
+    /// bracket (the second's starts at the first's crossing); nearly always the first step lands. `None`
+    /// (nothing has changed) when the first evaluation is not of this path.
     #[inline]
-    fn try_pair(&mut self, la: f64, lb: f64) -> Option<Result<(f64, f64), f64>> {
+    fn try_pair(&mut self, la: f64, lb: f64) -> Option<(f64, f64)> {
         if self.chained >= CHAIN {
             return None;
         }
         let xa = self.predict(la);
         let xb = self.predict(lb);
-        let pa = self.line.eval_near(xa, &self.anchor)?;
-        let pb = self.line.eval_near(xb, &self.anchor);
-        let (ia, ib) = (1.0 / pa.slope, pb.map(|p| 1.0 / p.slope));
-        // The first level, as `solve`'s first iteration.
-        let ra = self.one_step_root(xa, pa.f, la, ia)?;
+        let [pa, pb] = self.line.eval_near_pair(Lanes([xa, xb]), &self.anchor);
+        let pa = pa.filter(|_| strictly_between(xa, self.before, self.after))?;
         self.chained += 1;
         self.anchor = pa;
-        self.accept(ra, la, (xa, pa.slope, ia));
-        // The second level, from the same start, in the bracket the first left.
-        let (Some(pb), Some(ib)) = (pb, ib) else {
-            return Some(Err(ra));
-        };
-        let Some(rb) = self.one_step_root(xb, pb.f, lb, ib) else {
-            return Some(Err(ra));
-        };
+        let ra = self.finish(la, xa, &pa);
         // `pb` is one increment from the point before `pa`: the chain is one longer, not two.
-        self.anchor = pb;
-        self.accept(rb, lb, (xb, pb.slope, ib));
-        Some(Ok((ra, rb)))
+        let rb = match pb {
+            Some(pb) if strictly_between(xb, self.before, self.after) => {
+                self.anchor = pb;
+                self.finish(lb, xb, &pb)
+            }
+            _ => self.solve(lb),
+        };
+        Some((ra, rb))
     }
+
+    /// The crossing of `level`, from its first evaluation `p` at `x` (inside the bracket).
+    #[inline]
+    fn finish(&mut self, level: f64, x: f64, p: &Probe) -> f64 {
+        let last = (x, p.f, p.inv_slope);
+        match self.newton_step(level, x, p) {
+            Newton::Root(root) => self.accept(root, last),
+            Newton::Next(next) => self.solve_from(level, next, last),
+        }
+    }
+}
+
+/// What one Newton step from an evaluated point gives: the crossing, or the next point to evaluate.
+enum Newton {
+    Root(f64),
+    Next(f64),
+}
+
+fn finite_or_zero(x: f64) -> f64 {
+    if x.is_finite() { x } else { 0.0 }
 }
 
 /// Whether `x` lies in the closed interval between `a` and `b` (either order).
@@ -266,11 +280,7 @@ impl LevelInverse for Crossings<'_> {
     #[inline]
     fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
         match self.try_pair(a, b) {
-            Some(Ok((ra, rb))) => (self.span.time_at(ra), self.span.time_at(rb)),
-            Some(Err(ra)) => {
-                let ta = self.span.time_at(ra);
-                (ta, self.next_time(b))
-            }
+            Some((ra, rb)) => (self.span.time_at(ra), self.span.time_at(rb)),
             None => {
                 let ta = self.next_time(a);
                 (ta, self.next_time(b))
@@ -330,10 +340,10 @@ impl ScaraJointState {
             source,
         };
         let start = line.eval(d0, self.q1).map_err(|e| error(d0, e))?;
-        self.q1 = start.q1;
+        self.q1 = start.probe.q1;
         if line.a == 0.0 || d0 == d1 {
             // No XY motion: the joints cannot move.
-            rule.settle(start.f, piece.print_time + span.t0, sink);
+            rule.settle(start.probe.f, piece.print_time + span.t0, sink);
             return Ok(());
         }
         let tol = (span.max_speed() * ROOT_TIME_TOL)
@@ -351,7 +361,7 @@ impl ScaraJointState {
             if let Err((s, e)) = joint_run(rule, &context, (at.0, &at.1), (to, &end), sign, sink) {
                 return Err(error(s, e));
             }
-            self.q1 = end.q1;
+            self.q1 = end.probe.q1;
             at = (to, end);
         }
         Ok(())
@@ -394,7 +404,7 @@ fn joint_run<S: StepSink + ?Sized>(
         print_time,
         tol,
     } = *context;
-    let ((sa, pa), (sb, pb)) = (a, b);
+    let ((sa, pa), (sb, pb)) = ((a.0, &a.1.probe), (b.0, &b.1.probe));
     let ta = span.time_at(sa);
     if sign.is_none() {
         let (fa, fb) = (pa.f, pb.f);
@@ -416,10 +426,9 @@ fn joint_run<S: StepSink + ?Sized>(
         after: sb,
         end: sb,
         rising: if pb.f >= pa.f { 1.0 } else { -1.0 },
-        prev: (sa, pa.f, pa.slope),
-        inv_slope: 1.0 / pa.slope,
+        prev: (sa, pa.f, pa.inv_slope),
         inv_length: 10.0 / line.l1.min(line.l2),
-        curvature: (pb.slope - pa.slope) / (sb - sa),
+        bend: finite_or_zero(a.1.bend),
         anchor: *pa,
         chained: 0,
         tol,

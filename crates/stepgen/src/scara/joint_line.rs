@@ -6,6 +6,8 @@ use std::f64::consts::PI;
 
 use kinematics::scara::{Joints, ScaraGeometry, ScaraJoint, normalise};
 use kinematics::{ElbowBranch, ReachError, unwrap_near};
+
+use super::lanes::{Lanes, both};
 use trapq::Piece;
 
 /// Margin of `|cos q2|` below 1 for the closed-form solver (closer spans use the general one).
@@ -13,22 +15,35 @@ const REACH_MARGIN: f64 = 1e-12;
 /// Relative widening of every interval bound (covers the rounding of the bound's own arithmetic).
 const BOUND_SLACK: f64 = 1e-12;
 
-/// The motor at one distance along the piece.
+/// The motor at one distance along the piece, as Newton's method needs it: its reading, its inverse rate,
+/// and what the next evaluation by increments ([`JointLine::eval_near`]) starts from.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Point {
-    /// Motor position (rad), unwrapped.
+pub(super) struct Probe {
+    /// Motor position (rad), unwrapped: `base + offset`.
     pub(super) f: f64,
-    /// d(motor)/ds (rad/mm).
-    pub(super) slope: f64,
+    /// The motor at the last full evaluation, and the increments summed since (kept apart so that a long
+    /// chain of increments rounds at the size of the offset, not of the motor position).
+    pub(super) base: f64,
+    pub(super) offset: f64,
+    /// ds/d(motor) (mm/rad): Newton's step is a product.
+    pub(super) inv_slope: f64,
     /// Shoulder angle, unwrapped (for the next unwrap).
     pub(super) q1: f64,
-    /// Angle between link 1 and the nozzle ray, `atan2(L2 sin q2, L1 + L2 cos q2)`.
+    /// `(u + iv)·(L1 + L2·e^(−i·q2))`: link 1's direction `e^(i·q1)` scaled by `ρ²`, so the shoulder's turn
+    /// between two points is one complex product's argument.
+    pub(super) link: [f64; 2],
+    /// `(cos q2, signed sin q2)`, `sin q2 = √(1 − cos² q2)` on the branch.
+    pub(super) elbow: [f64; 2],
+}
+
+/// The motor at one distance, fully evaluated (run ends): a [`Probe`] and the angle `β` between link 1 and
+/// the nozzle ray, `atan2(L2 sin q2, L1 + L2 cos q2)`, for continuing the shoulder angle along the line.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Point {
+    pub(super) probe: Probe,
     pub(super) beta: f64,
-    /// Arm-frame position, `cos q2` and signed `√(1 − cos² q2)`: what [`JointLine::eval_near`] starts from.
-    pub(super) u: f64,
-    pub(super) v: f64,
-    pub(super) c2: f64,
-    pub(super) s2: f64,
+    /// d²s/d(motor)² here (what a run's first prediction needs before successive crossings estimate it).
+    pub(super) bend: f64,
 }
 
 /// One piece's line as seen by one joint motor.
@@ -38,7 +53,8 @@ pub(super) struct JointLine {
     /// Bed-frame XY start and direction of the piece (the same arithmetic as the general solver's points).
     pub(super) start: [f64; 2],
     pub(super) dir: [f64; 2],
-    /// Arm-frame direction.
+    /// Arm-frame start and direction (what [`Self::eval_near`] steps along).
+    pub(super) arm_start: [f64; 2],
     pub(super) arm_dir: [f64; 2],
     /// `ρ²(s) = a·s² + 2b·s + c`.
     pub(super) a: f64,
@@ -54,8 +70,10 @@ pub(super) struct JointLine {
     pub(super) inv_scale: f64,
     /// +1 on the left elbow branch (`q2 ≥ 0`), −1 on the right.
     pub(super) branch: f64,
-    /// `c` of `q2 + c·q1` (elbow motor).
-    pub(super) coupling: f64,
+    /// The motor is `weight_q1·q1 + weight_q2·q2` (+ its zero): `(1, 0)` for the shoulder, `(c, 1)` for the
+    /// elbow's `q2 + c·q1`.
+    pub(super) weight_q1: f64,
+    pub(super) weight_q2: f64,
 }
 
 impl JointLine {
@@ -70,6 +88,7 @@ impl JointLine {
             shoulder: joint == ScaraJoint::Shoulder,
             start,
             dir,
+            arm_start: [pu, pv],
             arm_dir: [uu, uv],
             a: uu * uu + uv * uv,
             b: pu * uu + pv * uv,
@@ -84,7 +103,16 @@ impl JointLine {
                 ElbowBranch::Left => 1.0,
                 ElbowBranch::Right => -1.0,
             },
-            coupling: geometry.coupling(1.0),
+            weight_q1: if joint == ScaraJoint::Shoulder {
+                1.0
+            } else {
+                geometry.coupling(1.0)
+            },
+            weight_q2: if joint == ScaraJoint::Shoulder {
+                0.0
+            } else {
+                1.0
+            },
         }
     }
 
@@ -115,20 +143,47 @@ impl JointLine {
         rmin > 0.0 && cmin > -1.0 + REACH_MARGIN && cmax < 1.0 - REACH_MARGIN
     }
 
-    /// Motor rate from `ρ²`, its derivative, `cos q2` and the signed `sin q2`. With `D = 2·L1·L2·sin q2`:
-    /// `q2' = −(ρ²)'/D` and `q1' = (cross − L2·(L2 + L1·cos q2)·q2')/ρ² = (cross·D + L2·(L2 + L1·cos q2)·(ρ²)')/(ρ²·D)`,
-    /// one division for both.
-    #[inline]
-    pub(super) fn slope(&self, r: f64, rp: f64, c2: f64, s2: f64) -> f64 {
+    /// Inverse motor rate ds/d(motor) from `ρ²`, its derivative, `cos q2` and the signed `sin q2`. With
+    /// `D = 2·L1·L2·sin q2`: `q2' = −(ρ²)'/D` and `q1' = (cross − L2·(L2 + L1·cos q2)·q2')/ρ²
+    /// = (cross·D + L2·(L2 + L1·cos q2)·(ρ²)')/(ρ²·D)`; the motor rate is their weighted sum over `ρ²·D`,
+    /// one division for its inverse.
+    #[inline(always)]
+    pub(super) fn inv_slope(&self, r: Lanes, rp: Lanes, c2: Lanes, s2: Lanes) -> Lanes {
         let den = self.scale * s2;
-        let inv = 1.0 / (den * r);
-        let dq2 = -rp * r * inv;
-        let dq1 = (self.cross * den + self.l2 * (self.l2 + self.l1 * c2) * rp) * inv;
-        if self.shoulder {
-            dq1
-        } else {
-            dq2 + self.coupling * dq1
-        }
+        let q1_num = self.cross * den + self.l2 * (self.l2 + self.l1 * c2) * rp;
+        let q2_num = -rp * r;
+        (den * r) / (self.weight_q1 * q1_num + self.weight_q2 * q2_num)
+    }
+
+    /// d²s/d(motor)², the derivative of [`Self::inv_slope`]'s `D/N` along the motor: `(N·D' − N'·D)·D/N³`
+    /// with `'` = d/ds (`(ρ²)'' = 2a`, `(cos q2)' = (ρ²)'/(2·L1·L2)`, `(sin q2)' = −cos q2·(cos q2)'/sin q2`).
+    pub(super) fn bend(&self, r: f64, rp: f64, c2: f64, s2: f64) -> f64 {
+        let (rpp, c2p) = (2.0 * self.a, rp * self.inv_scale);
+        let s2p = -c2 * c2p / s2;
+        let (den, den_p) = (self.scale * s2, self.scale * s2p);
+        let (w, w_p) = (self.l2 * (self.l2 + self.l1 * c2), self.l2 * self.l1 * c2p);
+        let q1_num = self.cross * den + w * rp;
+        let q1_num_p = self.cross * den_p + w_p * rp + w * rpp;
+        let (q2_num, q2_num_p) = (-rp * r, -(rpp * r + rp * rp));
+        let n = self.weight_q1 * q1_num + self.weight_q2 * q2_num;
+        let n_p = self.weight_q1 * q1_num_p + self.weight_q2 * q2_num_p;
+        let (d, d_p) = (den * r, den_p * r + den * rp);
+        (n * d_p - n_p * d) * d / (n * n * n)
+    }
+
+    /// Link 1's direction scaled by `ρ²` ([`Probe::link`]) from the arm-frame point and the elbow angle.
+    #[inline(always)]
+    fn link(&self, u: Lanes, v: Lanes, c2: Lanes, s2: Lanes) -> [Lanes; 2] {
+        let (bx, by) = (self.l1 + self.l2 * c2, self.l2 * s2);
+        [u * bx + v * by, v * bx - u * by]
+    }
+
+    /// `ρ²` and its derivative along the line at the arm-frame point `(u, v)`.
+    #[inline]
+    fn rho2_and_rate(&self, u: f64, v: f64) -> (f64, f64) {
+        let r = u * u + v * v;
+        let rp = 2.0 * (u * self.arm_dir[0] + v * self.arm_dir[1]);
+        (r, rp)
     }
 
     /// The motor at distance `s`, its shoulder angle unwrapped near `q1_near`.
@@ -148,59 +203,77 @@ impl JointLine {
         let beta = (l2 * sin_q2).atan2(l1 + l2 * cos_of_q2);
         let q1 = unwrap_near(normalise(v.atan2(u) - beta), q1_near);
         let (motor_a, motor_b) = self.geometry.motors_from_joints(Joints { q1, q2 });
-        let r = u * u + v * v;
-        let rp = 2.0 * (u * self.arm_dir[0] + v * self.arm_dir[1]);
+        let (r, rp) = self.rho2_and_rate(u, v);
         let signed_sin = self.branch * (1.0 - cos_q2 * cos_q2).max(0.0).sqrt();
-        Ok(Point {
-            f: if self.shoulder { motor_a } else { motor_b },
-            slope: self.slope(r, rp, cos_q2, signed_sin),
+        let f = if self.shoulder { motor_a } else { motor_b };
+        let lane = Lanes::splat;
+        let (c2, s2) = (lane(cos_q2), lane(signed_sin));
+        let link = self.link(lane(u), lane(v), c2, s2);
+        let probe = Probe {
+            f,
+            base: f,
+            offset: 0.0,
+            inv_slope: self.inv_slope(lane(r), lane(rp), c2, s2).0[0],
             q1,
+            link: [link[0].0[0], link[1].0[0]],
+            elbow: [cos_q2, signed_sin],
+        };
+        Ok(Point {
+            probe,
             beta,
-            u,
-            v,
-            c2: cos_q2,
-            s2: signed_sin,
+            bend: self.bend(r, rp, cos_q2, signed_sin),
         })
     }
 
-    /// The motor at `s` from a nearby evaluated point `from`, without a libm call: the nozzle ray, `β` and
-    /// `q2` turn by small angles whose sines and cosines are cross and dot products of the two points'
-    /// vectors, and a small angle is its tangent's short series. `None` when an increment is too large for
-    /// the series (or the point is out of reach): the caller evaluates in full.
+    /// The motor at `s` from a nearby evaluated point `from` ([`Self::eval_near_pair`] with one lane used).
     #[inline(always)]
-    pub(super) fn eval_near(&self, s: f64, from: &Point) -> Option<Point> {
-        let x = self.start[0] + self.dir[0] * s;
-        let y = self.start[1] + self.dir[1] * s;
-        let (u, v) = self.geometry.arm_frame(x, y);
-        let (l1, l2) = (self.l1, self.l2);
-        let c2 = (u * u + v * v - self.mid) * self.inv_scale;
-        if !(c2 > -1.0 && c2 < 1.0) {
-            return None;
-        }
-        let s2 = self.branch * (1.0 - c2 * c2).sqrt();
-        let d_theta = small_atan(from.u * v - from.v * u, from.u * u + from.v * v)?;
-        let (bx0, by0) = (l1 + l2 * from.c2, l2 * from.s2);
-        let (bx, by) = (l1 + l2 * c2, l2 * s2);
-        let d_beta = small_atan(bx0 * by - by0 * bx, bx0 * bx + by0 * by)?;
-        let d_q2 = small_atan(s2 * from.c2 - c2 * from.s2, c2 * from.c2 + s2 * from.s2)?;
-        let d_q1 = d_theta - d_beta;
-        let d_f = if self.shoulder {
-            d_q1
-        } else {
-            d_q2 + self.coupling * d_q1
-        };
+    pub(super) fn eval_near(&self, s: f64, from: &Probe) -> Option<Probe> {
+        let [p, _] = self.eval_near_pair(Lanes::splat(s), from);
+        p
+    }
+
+    /// The motor at the two distances `s` from a nearby evaluated point `from`, without a libm call: the
+    /// shoulder and the elbow turn by small angles whose tangents are quotients of complex products of the
+    /// points' link and elbow directions (one division for both), and a small angle is its tangent's short
+    /// series. `None` in a lane whose increments are too large for the series (or whose point is out of
+    /// reach): the caller evaluates in full.
+    #[inline(always)]
+    pub(super) fn eval_near_pair(&self, s: Lanes, from: &Probe) -> [Option<Probe>; 2] {
+        let u = self.arm_start[0] + self.arm_dir[0] * s;
+        let v = self.arm_start[1] + self.arm_dir[1] * s;
         let r = u * u + v * v;
         let rp = 2.0 * (u * self.arm_dir[0] + v * self.arm_dir[1]);
-        Some(Point {
-            f: from.f + d_f,
-            slope: self.slope(r, rp, c2, s2),
-            q1: from.q1 + d_q1,
-            beta: from.beta + d_beta,
-            u,
-            v,
-            c2,
-            s2,
-        })
+        let c2 = (r - self.mid) * self.inv_scale;
+        let s2 = self.branch * (1.0 - c2 * c2).sqrt();
+        let link = self.link(u, v, c2, s2);
+        let shoulder = turn(from.link, link);
+        let elbow = turn(from.elbow, [c2, s2]);
+        // tan of each turn, over one division for both.
+        let inv = 1.0 / (shoulder[0] * elbow[0]);
+        let tan_q1 = shoulder[1] * elbow[0] * inv;
+        let tan_q2 = elbow[1] * shoulder[0] * inv;
+        let valid = both(
+            both(c2.strictly_within(-1.0, 1.0), shoulder[0].positive()),
+            both(
+                elbow[0].positive(),
+                both(tan_q1.small(SMALL_TAN), tan_q2.small(SMALL_TAN)),
+            ),
+        );
+        let (d_q1, d_q2) = (small_atan(tan_q1), small_atan(tan_q2));
+        let offset = from.offset + (self.weight_q2 * d_q2 + self.weight_q1 * d_q1);
+        let f = from.base + offset;
+        let inv_slope = self.inv_slope(r, rp, c2, s2);
+        let q1 = from.q1 + d_q1;
+        let lane = |i: usize| Probe {
+            f: f.0[i],
+            base: from.base,
+            offset: offset.0[i],
+            inv_slope: inv_slope.0[i],
+            q1: q1.0[i],
+            link: [link[0].0[i], link[1].0[i]],
+            elbow: [c2.0[i], s2.0[i]],
+        };
+        [valid[0].then(|| lane(0)), valid[1].then(|| lane(1))]
     }
 
     #[cold]
@@ -212,7 +285,7 @@ impl JointLine {
             .unwrap_or(ReachError::NotFinite)
     }
 
-    /// Bounds of the motor rate over `[lo, hi]` (`lo ≤ hi`), by interval arithmetic on [`Self::slope`].
+    /// Bounds of the motor rate over `[lo, hi]` (`lo ≤ hi`), by interval arithmetic on the rates of [`Self::inv_slope`].
     pub(super) fn slope_bounds(&self, lo: f64, hi: f64) -> (f64, f64) {
         let (rmin, rmax) = self.rho2_range(lo, hi);
         let rp = (2.0 * (self.a * lo + self.b), 2.0 * (self.a * hi + self.b));
@@ -245,7 +318,7 @@ impl JointLine {
         let (low, high) = if self.shoulder {
             dq1
         } else {
-            let k = mul((self.coupling, self.coupling), dq1);
+            let k = mul((self.weight_q1, self.weight_q1), dq1);
             (dq2.0 + k.0, dq2.1 + k.1)
         };
         let slack = BOUND_SLACK * low.abs().max(high.abs());
@@ -270,7 +343,7 @@ impl JointLine {
         let pa = self.arm_point(from);
         let pb = self.arm_point(to);
         let sweep = ((to - from) * self.cross).atan2(pa[0] * pb[0] + pa[1] * pb[1]);
-        at_from.q1 + sweep - (beta_to - at_from.beta)
+        at_from.probe.q1 + sweep - (beta_to - at_from.beta)
     }
 
     pub(super) fn arm_point(&self, s: f64) -> [f64; 2] {
@@ -288,9 +361,9 @@ impl JointLine {
         at_from: &Point,
         to: f64,
     ) -> Result<Point, ReachError> {
-        let first = self.eval(to, at_from.q1)?;
+        let first = self.eval(to, at_from.probe.q1)?;
         let near = self.continued_q1(from, at_from, to, first.beta);
-        if (first.q1 - near).abs() <= 0.5 * PI {
+        if (first.probe.q1 - near).abs() <= 0.5 * PI {
             return Ok(first);
         }
         self.eval(to, near)
@@ -300,13 +373,19 @@ impl JointLine {
 /// Largest tangent [`small_atan`] takes: the first series term left out, t¹¹/11, is below 1e-23.
 const SMALL_TAN: f64 = 1e-2;
 
-/// `atan2(y, x)` for a small angle (`|y/x| ≤ SMALL_TAN`, `x > 0`), from the series of `atan(t)`.
-#[inline]
-fn small_atan(y: f64, x: f64) -> Option<f64> {
-    let t = y / x;
-    if !(x > 0.0 && t.abs() <= SMALL_TAN) {
-        return None;
-    }
+/// `to · conj(from)` (per lane `from` is the same point): a complex number whose argument is the turn from
+/// `from`'s direction to `to`'s.
+#[inline(always)]
+fn turn(from: [f64; 2], to: [Lanes; 2]) -> [Lanes; 2] {
+    [
+        to[0] * from[0] + to[1] * from[1],
+        to[1] * from[0] - to[0] * from[1],
+    ]
+}
+
+/// `atan(t)` for `|t| ≤ SMALL_TAN`, from its series.
+#[inline(always)]
+fn small_atan(t: Lanes) -> Lanes {
     // `t·(1 − t²/3 + t⁴/5 − t⁶/7 + t⁸/9)`, the powers side by side (Estrin's scheme: the divisions by
     // constants are multiplications, the chain is three products deep instead of five).
     let t2 = t * t;
@@ -314,7 +393,7 @@ fn small_atan(y: f64, x: f64) -> Option<f64> {
     let low = 1.0 - t2 * (1.0 / 3.0);
     let mid = 1.0 / 5.0 - t2 * (1.0 / 7.0);
     let high = t4 * (1.0 / 9.0);
-    Some(t * (low + t4 * (mid + high)))
+    t * (low + t4 * (mid + high))
 }
 
 /// Interval product.
@@ -356,20 +435,57 @@ mod tests {
             );
             for s in [0.0, 5.0, 20.0] {
                 let h = 1e-5;
-                let p = line.eval(s, 1.0).expect("reachable");
-                let fa = line.eval(s - h, 1.0).expect("reachable").f;
-                let fb = line.eval(s + h, 1.0).expect("reachable").f;
+                let p = line.eval(s, 1.0).expect("reachable").probe;
+                let fa = line.eval(s - h, 1.0).expect("reachable").probe.f;
+                let fb = line.eval(s + h, 1.0).expect("reachable").probe.f;
                 let numeric = (fb - fa) / (2.0 * h);
+                let slope = 1.0 / p.inv_slope;
                 assert!(
-                    (p.slope - numeric).abs() < 1e-7,
-                    "{joint:?} {s}: {} vs {numeric}",
-                    p.slope
+                    (slope - numeric).abs() < 1e-7,
+                    "{joint:?} {s}: {slope} vs {numeric}",
+                );
+                let (pa, pb) = (
+                    line.eval(s - h, 1.0).expect("reachable").probe,
+                    line.eval(s + h, 1.0).expect("reachable").probe,
+                );
+                let bend = line.eval(s, 1.0).expect("reachable").bend;
+                let numeric_bend = (pb.inv_slope - pa.inv_slope) / (pb.f - pa.f);
+                assert!(
+                    (bend - numeric_bend).abs() < 1e-5 * bend.abs().max(1.0),
+                    "{joint:?} {s}: bend {bend} vs {numeric_bend}",
                 );
                 let mut m = [0.0; 3];
                 kin.inverse([0.6 / n * s, 130.0 - 0.8 / n * s, 0.0], &mut m)
                     .expect("reachable");
                 let index = if joint == ScaraJoint::Shoulder { 0 } else { 1 };
                 assert_eq!(p.f, m[index]);
+            }
+        }
+    }
+
+    /// A chain of evaluations by increments (one lane, and pairs) stays within 1e-14 rad of full ones.
+    #[test]
+    fn increments_follow_full_evaluations() {
+        let kin = Scara::new(ScaraParams::fekt_example()).expect("params");
+        let n = 0.6f64.hypot(0.8);
+        for joint in [ScaraJoint::Shoulder, ScaraJoint::Elbow] {
+            let line = JointLine::new(
+                kin.geometry(),
+                joint,
+                &piece([0.0, 130.0, 0.0], [0.6 / n, -0.8 / n, 0.0]),
+            );
+            let mut anchor = line.eval(0.0, 1.0).expect("reachable").probe;
+            for i in 1..=300 {
+                let s = 0.1 * f64::from(i);
+                let [a, b] = line.eval_near_pair(Lanes([s - 0.05, s]), &anchor);
+                let (a, b) = (a.expect("small turn"), b.expect("small turn"));
+                for (at, p) in [(s - 0.05, a), (s, b)] {
+                    let full = line.eval(at, p.q1).expect("reachable").probe;
+                    assert!((p.f - full.f).abs() < 1e-14, "{joint:?} {at}");
+                    assert!((p.q1 - full.q1).abs() < 1e-14, "{joint:?} {at}");
+                    assert!((p.inv_slope / full.inv_slope - 1.0).abs() < 1e-12);
+                }
+                anchor = b;
             }
         }
     }

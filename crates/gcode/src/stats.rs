@@ -8,9 +8,9 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::command::{Arc as ArcMove, Command, Meta, Move, Position};
+use crate::command::{Arc as ArcMove, Command, Meta, Move, Position, Span, Spanned};
 use crate::error::GcodeError;
-use crate::interp::{Interpreter, InterpreterOptions};
+use crate::interp::{FastSink, Interpreter, InterpreterOptions};
 use crate::lexer::{CommandWord, Line};
 use crate::reader::Reader;
 
@@ -135,33 +135,11 @@ impl StatsCollector {
         }
     }
 
-    /// Counts a line the interpreter's fast path took and accounts for the command it gave, in one
-    /// dispatch: that path takes only plain `G0`/`G1`/`G2`/`G3`/`G92` lines, blank lines and
-    /// comment-only lines (whose slicer metadata is a [`Command::Meta`], no command word), so the
-    /// command tells the line's G code. `file_stats_checked_against_the_general_path` keeps this in
-    /// step with the fast path.
-    #[inline]
-    fn add_fast_line(&mut self, command: Option<&Command>) {
-        self.stats.lines += 1;
-        match command {
-            None => {}
-            Some(Command::Move(m)) => {
-                self.codes.add_g(if m.rapid { 0 } else { 1 });
-                self.add_move(m);
-            }
-            Some(Command::Arc(arc)) => {
-                self.codes.add_g(if arc.clockwise { 2 } else { 3 });
-                self.add_arc(arc);
-            }
-            Some(Command::SetPosition { .. }) => self.codes.add_g(92),
-            Some(other) => {
-                debug_assert!(
-                    matches!(other, Command::Meta(_)),
-                    "the fast path gave {other:?}"
-                );
-                self.add_command(other);
-            }
-        }
+    /// A `G0`/`G1` line's move from the fast path (which counts no code).
+    #[inline(always)]
+    fn add_fast_move(&mut self, m: &Move) {
+        self.codes.add_g(if m.rapid { 0 } else { 1 });
+        self.add_move(m);
     }
 
     /// Accounts for one interpreted command.
@@ -185,7 +163,7 @@ impl StatsCollector {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn add_move(&mut self, m: &Move) {
         self.stats.moves += 1;
         let start = self.position;
@@ -338,6 +316,39 @@ impl StatsCollector {
     }
 }
 
+/// The lines the interpreter's fast path takes, counted and accounted for as it reads them. That
+/// path takes only plain `G0`/`G1`/`G2`/`G3`/`G92` lines, blank lines and comment-only lines (whose
+/// slicer metadata is a [`Command::Meta`], no command word), so the command tells the line's G code.
+/// `file_stats_checked_against_the_general_path` keeps this in step with the fast path.
+impl FastSink for StatsCollector {
+    #[inline(always)]
+    fn take(&mut self, made: Option<Spanned<Command>>) {
+        self.stats.lines += 1;
+        match made.map(|command| command.value) {
+            None => {}
+            Some(Command::Move(m)) => self.add_fast_move(&m),
+            Some(Command::Arc(arc)) => {
+                self.codes.add_g(if arc.clockwise { 2 } else { 3 });
+                self.add_arc(&arc);
+            }
+            Some(Command::SetPosition { .. }) => self.codes.add_g(92),
+            Some(other) => {
+                debug_assert!(
+                    matches!(other, Command::Meta(_)),
+                    "the fast path gave {other:?}"
+                );
+                self.add_command(&other);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn take_move(&mut self, _: Span, m: Move) {
+        self.stats.lines += 1;
+        self.add_fast_move(&m);
+    }
+}
+
 /// The length of an XY step: `√(dx² + dy²)`, within a relative 2⁻⁵² of `hypot`, without its library call (the largest
 /// cost the statistics added to the reading; in [`StatsCollector::flush_xy_travel`]'s loop the square roots are
 /// independent and overlap). Where the squares would overflow or underflow (coordinates beyond about 1e154 or
@@ -431,13 +442,11 @@ fn stats_of(
     loop {
         // The interpreter's queue is empty here (drained after every general line), as the fast
         // path requires for a line to give the command the general path would.
-        // All the lines the fast path takes in the input's buffer in one run; the command is
-        // looked at where the fast path wrote it, not copied out.
+        // All the lines the fast path takes in the input's buffer in one run; each command is
+        // looked at where the fast path makes it, not stored and read back.
         if fast_lines
             && reader.take_lines_with(|bytes, number| {
-                let len = interpreter.fast_line(bytes, number)?;
-                interpreter.look_at_fast_command(|command| collector.add_fast_line(command));
-                Some(len)
+                interpreter.fast_line_with(bytes, number, &mut collector)
             }) > 0
         {
             continue;

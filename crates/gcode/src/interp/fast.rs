@@ -209,7 +209,7 @@ impl Interpreter {
             return None;
         }
         let offset = [i.unwrap_or(0.0), j.unwrap_or(0.0)];
-        if offset[0].hypot(offset[1]) == 0.0 {
+        if offset == [0.0; 2] {
             return None;
         }
         let centre = checked_centre(&self.last, &target, offset).ok()?;

@@ -69,7 +69,7 @@ pub fn parse_number(bytes: &[u8], start: usize) -> Result<(f64, usize), NumberEr
 
 /// Reads decimal digits from `bytes[start..]`, continuing `mantissa` (wrapping: callers check the
 /// digit count); returns the mantissa and the index after the last digit.
-#[inline]
+#[inline(always)]
 fn digits(bytes: &[u8], start: usize, mut mantissa: u64) -> (u64, usize) {
     let mut i = start;
     // Two bytes a step (numbers run to several digits): half the loop's tests and steps.

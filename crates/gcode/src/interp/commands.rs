@@ -3,6 +3,7 @@
 use std::io::BufRead;
 use std::sync::Arc;
 
+use super::fast::Made;
 use super::state::{Interpreter, InterpreterOptions};
 use crate::command::{Command, Spanned};
 use crate::error::{GcodeError, Warning};
@@ -15,6 +16,9 @@ pub struct Commands<R> {
     interpreter: Interpreter,
     source: Arc<str>,
     finished: bool,
+    /// The command of the line the fast path took last, until [`Self::next_command`] hands it out
+    /// (written in place: no copies of a large value through the reader).
+    fast_command: Made,
     /// Plain moves, blank and comment-only lines take [`Interpreter::fast_line`] (off only in tests,
     /// to compare).
     pub(super) fast_lines: bool,
@@ -28,6 +32,7 @@ impl<R: BufRead> Commands<R> {
             interpreter: Interpreter::new(options),
             source,
             finished: false,
+            fast_command: None,
             fast_lines: true,
         }
     }
@@ -47,12 +52,12 @@ impl<R: BufRead> Commands<R> {
                 return None;
             }
             if self.fast_lines {
-                let interpreter = &mut self.interpreter;
+                let (interpreter, made) = (&mut self.interpreter, &mut self.fast_command);
                 let taken = self
                     .reader
-                    .take_line_with(|bytes, number| interpreter.fast_line(bytes, number));
+                    .take_line_with(|bytes, number| interpreter.fast_line(bytes, number, made));
                 if taken.is_some() {
-                    match self.interpreter.fast_command.take() {
+                    match self.fast_command.take() {
                         Some(command) => return Some(Ok(command)),
                         None => continue,
                     }

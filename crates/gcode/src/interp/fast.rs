@@ -1,6 +1,6 @@
 //! The fast path: the commonest lines (plain moves, arcs and G92, blank and comment lines) read in
-//! one pass over the bytes and their command written in place; anything else goes to the general
-//! path.
+//! one pass over the bytes and their command handed to the caller where it is made; anything else
+//! goes to the general path.
 
 use super::arcs::{ArcEnds, checked_centre};
 use super::state::{Interpreter, Plane, layer_change};
@@ -9,97 +9,153 @@ use crate::lexer::span_of;
 use crate::meta::{CommentMeta, comment_meta, may_start_meta};
 use crate::number::parse_number;
 
+/// A command the fast path made (none for a blank line or a comment without metadata).
+pub(crate) type Made = Option<Spanned<Command>>;
+
+/// Where [`Interpreter::fast_line_with`] hands the command of each line it takes.
+pub(crate) trait FastSink {
+    /// Any line's command.
+    fn take(&mut self, made: Made);
+
+    /// A plain `G0`/`G1`'s move, the commonest command: a sink that looks at the move alone gets
+    /// it without the [`Command`] around it, where it was made.
+    #[inline(always)]
+    fn take_move(&mut self, span: Span, value: Move) {
+        let value = Command::Move(value);
+        self.take(Some(Spanned { span, value }));
+    }
+}
+
+/// [`Interpreter::fast_line`]'s sink: the command kept.
+impl FastSink for Made {
+    #[inline(always)]
+    fn take(&mut self, made: Made) {
+        *self = made;
+    }
+}
+
 impl Interpreter {
+    /// The fast paths for the commonest lines (see [`Self::fast_line_with`]), leaving the line's
+    /// command (if any) in `made` ([`crate::Commands`]' slot for it, written in place).
+    pub(crate) fn fast_line(&mut self, bytes: &[u8], line: u64, made: &mut Made) -> Option<usize> {
+        self.fast_line_with(bytes, line, made)
+    }
+
     /// The fast paths for the commonest lines, read in one pass over the bytes without storing
-    /// tokens: a plain move ([`Self::plain_move_line`]), a blank line and a comment-only line
-    /// ([`Self::comment_line`]). `bytes` run from the line's start on (past its
-    /// end). Gives the line's length (up to its `\n` or `\r`) and leaves its command (if any) in
-    /// `fast_command`, or gives `None` for the general path.
-    pub(crate) fn fast_line(&mut self, bytes: &[u8], line: u64) -> Option<usize> {
+    /// tokens: a plain move ([`Self::plain_line`]), a blank line and a comment-only line
+    /// ([`Self::comment_line`]). `bytes` run from the line's start on (past its end). Gives the
+    /// line's length (up to its `\n` or `\r`) and hands its command to `sink`, or gives `None`,
+    /// with nothing changed and nothing handed over, for the general path. Inlined into its
+    /// caller: a plain move reaches the sink in registers (read back from memory just after its
+    /// stores, it stalled the sink's reads).
+    #[inline(always)]
+    pub(crate) fn fast_line_with(
+        &mut self,
+        bytes: &[u8],
+        line: u64,
+        sink: &mut impl FastSink,
+    ) -> Option<usize> {
         let start = skip_blanks(bytes, 0);
         match *bytes.get(start)? {
-            b'\n' | b'\r' => Some(start),
-            b';' => self.comment_line(bytes, start, line),
-            _ => self.plain_move_line(bytes, start, line),
+            b'\n' | b'\r' => {
+                sink.take(None);
+                Some(start)
+            }
+            b';' => {
+                let (len, made) = self.comment_line(bytes, start, line)?;
+                sink.take(made);
+                Some(len)
+            }
+            _ => self.plain_line(bytes, start, line, sink),
         }
     }
 
     /// A comment-only line (its `;` at `semicolon`) as the general path reads it when nothing is
     /// queued: no command, or the one its slicer metadata gives. `None` when the comment is not
     /// UTF-8 (the general path warns) and when its end is not in `bytes`.
-    fn comment_line(&mut self, bytes: &[u8], semicolon: usize, line: u64) -> Option<usize> {
+    fn comment_line(&mut self, bytes: &[u8], semicolon: usize, line: u64) -> Option<(usize, Made)> {
         let first = skip_blanks(bytes, semicolon + 1);
         let may_hold_meta = may_start_meta(*bytes.get(first)?);
         let end = semicolon + memchr::memchr2(b'\n', b'\r', &bytes[semicolon..])?;
         let text = &bytes[semicolon + 1..end];
         if !may_hold_meta {
-            return (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some(end);
+            return (text.is_ascii() || std::str::from_utf8(text).is_ok()).then_some((end, None));
         }
         let text = std::str::from_utf8(text).ok()?;
-        self.comment_line_meta(text, span_of(line, semicolon, end))?;
-        Some(end)
+        let made = self.comment_line_meta(text, span_of(line, semicolon, end))?;
+        Some((end, made))
     }
 
     /// [`Self::comments`] for the one comment of a comment-only line; `None` (nothing changed)
     /// where that would flush a pending layer start, which the general path does.
     #[inline(never)]
-    fn comment_line_meta(&mut self, text: &str, span: Span) -> Option<()> {
+    fn comment_line_meta(&mut self, text: &str, span: Span) -> Option<Made> {
         if !self.queue.is_empty() {
             return None;
         }
         match comment_meta(text) {
-            None => {}
+            None => Some(None),
             Some(CommentMeta::Meta(meta)) => {
                 if self.pending_layer.is_some() {
                     return None;
                 }
                 let value = Command::Meta(meta);
-                self.fast_command = Some(Spanned { span, value });
+                Some(Some(Spanned { span, value }))
             }
             Some(CommentMeta::LayerStart) => {
                 if self.pending_layer.is_some() {
                     return None;
                 }
                 self.pending_layer = Some(span);
+                Some(None)
             }
-            Some(CommentMeta::LayerZ(z)) => {
-                if let Some(span) = self.pending_layer.take() {
-                    self.fast_command = Some(layer_change(span, Some(z)));
-                }
-            }
+            Some(CommentMeta::LayerZ(z)) => Some(
+                self.pending_layer
+                    .take()
+                    .map(|span| layer_change(span, Some(z))),
+            ),
         }
-        Some(())
     }
 
     /// A plain `G0`/`G1`/`G2`/`G3`/`G92` (its command word at `start`): blank-separated X Y Z E F
     /// words (arcs also I J; G92 no F), each once, each with a number, and nothing else. Any
     /// other line, a line whose end is not in `bytes`, and a command that would fail or warn, give
     /// `None` and go through the lexer and [`Self::interpret`], which give the same command for the
-    /// lines this takes (checked by the `fast_path_*` tests). Gives the line's length and leaves
-    /// its command in `fast_command`.
-    fn plain_move_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
+    /// lines this takes (checked by the `fast_path_*` tests). Gives the line's length and hands
+    /// its command to `sink`.
+    #[inline(always)]
+    fn plain_line(
+        &mut self,
+        bytes: &[u8],
+        start: usize,
+        line: u64,
+        sink: &mut impl FastSink,
+    ) -> Option<usize> {
         if self.pending_layer.is_some() || !self.queue.is_empty() {
             return None;
         }
         let rapid = match bytes.get(start..start + 2)? {
             [b'G' | b'g', b'0'] => true,
             [b'G' | b'g', b'1'] => false,
-            [b'G' | b'g', b'2'] => return self.plain_arc_line(bytes, start, line, true),
-            [b'G' | b'g', b'3'] => return self.plain_arc_line(bytes, start, line, false),
+            [b'G' | b'g', b'2'] => {
+                return hand_over(self.plain_arc_line(bytes, start, line, true), sink);
+            }
+            [b'G' | b'g', b'3'] => {
+                return hand_over(self.plain_arc_line(bytes, start, line, false), sink);
+            }
             [b'G' | b'g', b'9'] if bytes.get(start + 2) == Some(&b'2') => {
-                return self.plain_set_position_line(bytes, start, line);
+                return hand_over(self.plain_set_position_line(bytes, start, line), sink);
             }
             _ => return None,
         };
         let command_end = start + 2;
         let (words, params_end, line_len) = plain_move_words::<LINEAR_SLOTS>(bytes, command_end)?;
-        let value = Command::Move(self.plain_linear_move(&words, rapid)?);
-        let span = span_of(line, start, command_end.max(params_end));
-        self.fast_command = Some(Spanned { span, value });
+        let value = self.plain_linear_move(&words, rapid)?;
+        sink.take_move(span_of(line, start, command_end.max(params_end)), value);
         Some(line_len)
     }
 
-    /// [`Self::plain_move_line`] for `G2`/`G3`, kept out of line: arcs are rarer, and the
+    /// [`Self::plain_line`] for `G2`/`G3`, kept out of line: arcs are rarer, and the
     /// straight moves' loop stays as tight as without them.
     #[inline(never)]
     fn plain_arc_line(
@@ -108,28 +164,32 @@ impl Interpreter {
         start: usize,
         line: u64,
         clockwise: bool,
-    ) -> Option<usize> {
+    ) -> Option<(usize, Spanned<Command>)> {
         let command_end = start + 2;
         let (words, params_end, line_len) = plain_move_words::<ARC_SLOTS>(bytes, command_end)?;
         let value = Command::Arc(Box::new(self.plain_arc(&words, clockwise)?));
         let span = span_of(line, start, command_end.max(params_end));
-        self.fast_command = Some(Spanned { span, value });
-        Some(line_len)
+        Some((line_len, Spanned { span, value }))
     }
 
-    /// [`Self::plain_move_line`] for `G92` with X Y Z E words (slicers reset E this way).
+    /// [`Self::plain_line`] for `G92` with X Y Z E words (slicers reset E this way).
     #[inline(never)]
-    fn plain_set_position_line(&mut self, bytes: &[u8], start: usize, line: u64) -> Option<usize> {
+    fn plain_set_position_line(
+        &mut self,
+        bytes: &[u8],
+        start: usize,
+        line: u64,
+    ) -> Option<(usize, Spanned<Command>)> {
         let command_end = start + 3;
         let (words, params_end, line_len) = plain_move_words::<POSITION_SLOTS>(bytes, command_end)?;
         let values = [0, 1, 2, 3].map(|axis| words.get(axis).map(|v| v * self.unit));
         let value = self.apply_set_position(values).ok()?;
         let span = span_of(line, start, command_end.max(params_end));
-        self.fast_command = Some(Spanned { span, value });
-        Some(line_len)
+        Some((line_len, Spanned { span, value }))
     }
 
     /// [`Self::linear_move`] for the words of a plain line; `None` where that would fail.
+    #[inline(always)]
     fn plain_linear_move(&mut self, words: &MoveWords, rapid: bool) -> Option<Move> {
         let (target, named) = self.plain_target(words)?;
         let speed = self.plain_speed(words)?;
@@ -149,7 +209,7 @@ impl Interpreter {
             return None;
         }
         let offset = [i.unwrap_or(0.0), j.unwrap_or(0.0)];
-        if offset[0].hypot(offset[1]) == 0.0 {
+        if offset == [0.0; 2] {
             return None;
         }
         let centre = checked_centre(&self.last, &target, offset).ok()?;
@@ -167,6 +227,7 @@ impl Interpreter {
 
     /// [`Self::target`] for the words of a plain line (not committed); `None` where that would
     /// fail.
+    #[inline(always)]
     fn plain_target(&self, words: &MoveWords) -> Option<(Position, [bool; 4])> {
         let (factor, absolute) = self.axis_modes();
         let mut target = self.last;
@@ -191,6 +252,13 @@ impl Interpreter {
             Some(f) => self.speed_from_f(f),
         }
     }
+}
+
+/// Hands a rarer line's command (if the line was taken) to `sink`; the line's length.
+fn hand_over(taken: Option<(usize, Spanned<Command>)>, sink: &mut impl FastSink) -> Option<usize> {
+    let (len, command) = taken?;
+    sink.take(Some(command));
+    Some(len)
 }
 
 /// Index of the first byte from `pos` that is not a blank.
@@ -246,7 +314,7 @@ const SLOT_BITS: [u8; 256] = {
 /// `\r` is), from `pos` just after the command word; `None` unless the rest of the line is only
 /// words with a slot in `ALLOWED`, each preceded by blanks, each letter once, each with a number
 /// the lexer would accept.
-#[inline]
+#[inline(always)]
 fn plain_move_words<const ALLOWED: u8>(
     bytes: &[u8],
     mut pos: usize,

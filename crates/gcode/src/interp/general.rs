@@ -277,7 +277,8 @@ impl Interpreter {
         let j = optional_value(line, b'J')?.map(|v| v * self.unit);
         let offset = if i.is_some() || j.is_some() {
             let offset = [i.unwrap_or(0.0), j.unwrap_or(0.0)];
-            if offset[0].hypot(offset[1]) == 0.0 {
+            // (No radius: `hypot` is 0 exactly when both are, the offsets being finite or infinite.)
+            if offset == [0.0; 2] {
                 return Err(Box::new((extent, ErrorKind::ArcZeroRadius)));
             }
             offset

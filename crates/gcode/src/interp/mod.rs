@@ -23,4 +23,5 @@ mod tests;
 
 pub use arcs::MAX_ARC_TURNS;
 pub use commands::Commands;
+pub(crate) use fast::FastSink;
 pub use state::{Interpreter, InterpreterOptions};

@@ -53,10 +53,6 @@ pub struct Interpreter {
     pub(super) extrude_factor: f64,
     pub(super) plane: Plane,
     pub(super) queue: VecDeque<Spanned<Command>>,
-    /// The command of the line the fast path took last, until
-    /// [`crate::Commands::next_command`] hands it out (written in place: no copies of a large
-    /// value through the reader).
-    pub(super) fast_command: Option<Spanned<Command>>,
     /// A layer start seen whose Z has not arrived yet.
     pub(super) pending_layer: Option<Span>,
     pub(super) warnings: Warnings,
@@ -81,7 +77,6 @@ impl Interpreter {
             extrude_factor: 1.0,
             plane: Plane::Xy,
             queue: VecDeque::new(),
-            fast_command: None,
             pending_layer: None,
             warnings: Warnings::default(),
         }
@@ -144,19 +139,6 @@ impl Interpreter {
     #[inline]
     pub fn pop_command(&mut self) -> Option<Spanned<Command>> {
         self.queue.pop_front()
-    }
-
-    /// Shows `look` the command [`Self::fast_line`] left for the line it took last (none for a
-    /// blank line or a comment without metadata) and drops it: nothing is copied out, for a caller
-    /// that only looks at the command.
-    #[inline(always)]
-    pub(crate) fn look_at_fast_command<T>(
-        &mut self,
-        look: impl FnOnce(Option<&Command>) -> T,
-    ) -> T {
-        let seen = look(self.fast_command.as_ref().map(|c| &c.value));
-        self.fast_command = None;
-        seen
     }
 
     /// End of input: emits a layer start still waiting for its Z.

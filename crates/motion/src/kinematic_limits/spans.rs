@@ -37,21 +37,7 @@ pub fn split(
         .map(|l| (*l, Profile::new(kin, l.motor, &line)))
         .collect();
     let rests = [kin.rests_at(start), kin.rests_at(end)];
-    let rest_length = GENERAL_SPAN_MM.min(0.5 * length);
-    let mut cuts = vec![0.0, length];
-    for (limit, profile) in &profiles {
-        profile.breakpoints(&line, limit, speed, &mut cuts);
-    }
-    if rests[0] {
-        cuts.push(rest_length);
-    }
-    if rests[1] {
-        cuts.push(length - rest_length);
-    }
-    cuts.retain(|c| c.is_finite());
-    cuts.sort_by(f64::total_cmp);
-    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
-
+    let cuts = cuts(&line, &profiles, speed, rests);
     let mut raw: Vec<Span> = cuts
         .windows(2)
         .map(|pair| {
@@ -86,11 +72,31 @@ pub fn split(
         }
         same
     });
-    let spans = raw;
-    let binds = spans
+    let binds = raw
         .iter()
         .any(|s| s.max_speed < speed || s.max_accel < accel);
-    if binds { spans } else { Vec::new() }
+    if binds { raw } else { Vec::new() }
+}
+
+/// Where the spans of `line` begin and end (mm along it, sorted, from 0 to its length): where each motor's caps
+/// change, and a rest span's length from each end the toolhead rests at.
+fn cuts(line: &Line, profiles: &[(MotorLimit, Profile)], speed: f64, rests: [bool; 2]) -> Vec<f64> {
+    let length = line.length;
+    let rest_length = GENERAL_SPAN_MM.min(0.5 * length);
+    let mut cuts = vec![0.0, length];
+    for (limit, profile) in profiles {
+        profile.breakpoints(line, limit, speed, &mut cuts);
+    }
+    if rests[0] {
+        cuts.push(rest_length);
+    }
+    if rests[1] {
+        cuts.push(length - rest_length);
+    }
+    cuts.retain(|c| c.is_finite());
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    cuts
 }
 
 /// The caps of the span `s0..s1` from every motor's bounds over it. Beside a rest pose the sampled motors are

@@ -31,7 +31,7 @@ int jointspace_inverse(struct jointspace_machine *m, const double *xyz, const do
 int jointspace_check_move(struct jointspace_machine *m, double start_x, double start_y, double start_z,
                           double end_x, double end_y, double end_z, double speed, double accel,
                           double *limits, char *error, size_t error_len);
-int jointspace_rests_at(struct jointspace_machine *m, double x, double y, double z);
+int jointspace_caps_corners(struct jointspace_machine *m);
 double jointspace_junction_speed(struct jointspace_machine *m, const double *points, double prev_accel,
                                  double next_accel);
 int jointspace_move_waypoints(struct jointspace_machine *m, double start_x, double start_y, double start_z,

@@ -194,6 +194,8 @@ class Machine:
         self._xyz = ffi.new("double[3]")
         self._limits = ffi.new("double[2]")
         self._corner = ffi.new("double[9]")
+        # Asked once: most machines have no acceleration-limited motor, and then no corner needs capping.
+        self.caps_corners = bool(lib.jointspace_caps_corners(self.handle))
         self._error = error
         self._margin = ffi.new("double *")
 
@@ -231,19 +233,16 @@ class Machine:
         return [self._motors[i] for i in range(len(self.motor_names))]
 
     def check_move(self, start, end, speed, accel):
-        """None when nothing binds, (speed, accel) when the move must be slowed; raises ValueError with the
-        reason when the move cannot be made. speed <= 0 checks the segment only."""
+        """(caps, ends_at_rest): caps None when nothing binds, (speed, accel) when the move must be slowed;
+        ends_at_rest when the move ends at a pose the arm may only rest at. Raises ValueError with the reason when
+        the move cannot be made. speed <= 0 checks the segment only."""
         rc = self.lib.jointspace_check_move(
             self.handle, start[0], start[1], start[2], end[0], end[1], end[2], speed, accel,
             self._limits, self._error, ERROR_LEN)
         if rc < 0:
             raise ValueError(self._reason())
-        if rc == 1:
-            return self._limits[0], self._limits[1]
-        return None
-
-    def rests_at(self, pos):
-        return bool(self.lib.jointspace_rests_at(self.handle, pos[0], pos[1], pos[2]))
+        caps = (self._limits[0], self._limits[1]) if rc & 1 else None
+        return caps, bool(rc & 2)
 
     def junction_speed(self, prev_start, corner, prev_accel, next_end, next_accel):
         """The highest speed at the corner (inf where nothing caps it)."""
@@ -464,17 +463,17 @@ class JointspaceKinematics:
         if xy_moves:
             speed = math.sqrt(move.max_cruise_v2) if exact else 0.
             try:
-                limits = self.machine.check_move(move.start_pos, end, speed, move.accel)
+                limits, ends_at_rest = self.machine.check_move(move.start_pos, end, speed, move.accel)
             except ValueError as e:
                 raise move.move_error("Move out of range (%s)" % (e,))
             if limits is not None:
                 move.limit_speed(limits[0], limits[1])
-            if self.machine.rests_at(end):
+            if ends_at_rest:
                 # A pose the arm may only rest at (nearly straight or folded): the move ends there at rest.
                 move.limit_next_junction_speed(0.)
             if not exact:
                 self.klipper_centre_slowdown(move)
-        if exact:
+        if exact and self.machine.caps_corners:
             self._limit_corner(move)
 
     def _limit_corner(self, move):

@@ -277,9 +277,9 @@ pub unsafe extern "C" fn jointspace_inverse(
 
 /// Checks the straight move `start → end` requested at `speed` (mm/s) and `accel` (mm/s²): the whole segment
 /// against reach, the polar centre, singular poses and joint limits, and the motor limits (bed angular speed and
-/// acceleration, joint speeds, step rates) over its whole length. Returns 0 when nothing binds, 1 when the move
-/// must be slowed (`limits[0]` cruise speed, `limits[1]` acceleration), −1 when it cannot be made (the reason in
-/// `error`).
+/// acceleration, joint speeds, step rates) over its whole length. Returns −1 when it cannot be made (the reason in
+/// `error`), else flags: 1 when the move must be slowed (`limits[0]` cruise speed, `limits[1]` acceleration), 2 when
+/// it ends at a pose the arm may only rest at (it must end at rest).
 ///
 /// # Safety
 /// `limits` holds two doubles; `error` holds `error_len` bytes or is null.
@@ -307,14 +307,15 @@ pub unsafe extern "C" fn jointspace_check_move(
         accel,
     );
     match verdict {
-        Ok(MoveVerdict::Free) => 0,
-        Ok(MoveVerdict::Limited { speed, accel }) => {
-            // SAFETY: limits holds two doubles.
-            unsafe {
-                *limits = speed;
-                *limits.add(1) = accel;
+        Ok(MoveVerdict { caps, ends_at_rest }) => {
+            if let Some((speed, accel)) = caps {
+                // SAFETY: limits holds two doubles.
+                unsafe {
+                    *limits = speed;
+                    *limits.add(1) = accel;
+                }
             }
-            1
+            c_int::from(caps.is_some()) | (c_int::from(ends_at_rest) << 1)
         }
         Err(e) => {
             write_message(&e, error, error_len);
@@ -347,11 +348,10 @@ pub unsafe extern "C" fn jointspace_junction_speed(
     if speed.is_nan() { f64::INFINITY } else { speed }
 }
 
-/// 1 when the toolhead may only rest at `(x, y, z)` (a SCARA's nearly straight or folded arm: a move ending there
-/// must end at rest), else 0.
+/// 1 when corners need capping (some motor has an acceleration limit: ask [`jointspace_junction_speed`]), else 0.
 #[unsafe(no_mangle)]
-pub extern "C" fn jointspace_rests_at(m: *const Machine, x: f64, y: f64, z: f64) -> c_int {
-    machine(m).is_some_and(|m| m.rests_at([x, y, z])) as c_int
+pub extern "C" fn jointspace_caps_corners(m: *const Machine) -> c_int {
+    c_int::from(machine(m).is_some_and(Machine::caps_corners))
 }
 
 /// The pose the config declares for homing (FEKT-SCARA's `home_position`) into `xyz[3]`: 0, or −1 if none.

@@ -11,7 +11,7 @@ use config::MachineConfig;
 use kinematics::polar::Polar;
 use kinematics::scara::Scara;
 use kinematics::{Kinematics, MachineParams, MotorMap, ReachError};
-use motion::kinematic_limits::{JunctionSide, MotorLimit, junction_v2, split};
+use motion::kinematic_limits::{JunctionSide, MotorLimit, caps_corners, junction_v2, split};
 use motion::machine::MachineSetup;
 
 use crate::pieces::{Centre, Waypoint, waypoints};
@@ -46,11 +46,12 @@ enum Shape {
 
 /// What a move may do, for Klipper's `check_move`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum MoveVerdict {
-    /// No motor limit binds anywhere on the move.
-    Free,
-    /// The whole move must stay within this cruise speed (mm/s) and acceleration (mm/s²).
-    Limited { speed: f64, accel: f64 },
+pub struct MoveVerdict {
+    /// The cruise speed (mm/s) and acceleration (mm/s²) the whole move must stay within, where a motor limit binds.
+    pub caps: Option<(f64, f64)>,
+    /// It ends at a pose the arm may only rest at (a SCARA's nearly straight or folded arm): it must end at rest,
+    /// as jointspace's planner makes it (the plug-in sets Klipper's next junction to zero).
+    pub ends_at_rest: bool,
 }
 
 impl Machine {
@@ -157,18 +158,20 @@ impl Machine {
             accel,
             self.cruise_ratio(),
         );
-        if spans.is_empty() {
-            return Ok(MoveVerdict::Free);
-        }
-        let speed = spans.iter().map(|s| s.max_speed).fold(speed, f64::min);
-        let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
-        Ok(MoveVerdict::Limited { speed, accel })
+        let caps = (!spans.is_empty()).then(|| {
+            let speed = spans.iter().map(|s| s.max_speed).fold(speed, f64::min);
+            let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
+            (speed, accel)
+        });
+        Ok(MoveVerdict {
+            caps,
+            ends_at_rest: start != end && kin.rests_at(end),
+        })
     }
 
-    /// Whether the toolhead may only rest at `p` (a SCARA's nearly straight or folded arm): a move ending there
-    /// must end at rest, as jointspace's planner makes it (the plug-in sets Klipper's next junction to zero).
-    pub fn rests_at(&self, p: [f64; 3]) -> bool {
-        self.kinematics().rests_at(p)
+    /// Whether corners need capping ([`Self::junction_speed`]): some motor has an acceleration limit.
+    pub fn caps_corners(&self) -> bool {
+        caps_corners(self.motor_limits())
     }
 
     /// The highest speed (mm/s) at the corner where the move `points[0] → points[1]` (planned with acceleration

@@ -2,7 +2,7 @@
 
 use kinematics::{Kinematics, Vec3};
 
-use super::limit::{JUMP_WINDOW_STEPS, MotorLimit};
+use super::limit::{JUMP_WINDOW_STEPS, MotorLimit, caps_corners};
 use super::profile::{GENERAL_SPAN_MM, Line, Profile};
 
 /// One side of a junction: a straight move and the acceleration it is planned with.
@@ -23,7 +23,7 @@ pub fn junction_v2(
     incoming: JunctionSide,
     outgoing: JunctionSide,
 ) -> f64 {
-    if limits.iter().all(|l| l.max_accel.is_none()) {
+    if !caps_corners(limits) {
         return f64::INFINITY;
     }
     let lines = (

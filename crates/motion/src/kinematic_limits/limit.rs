@@ -21,6 +21,12 @@ pub struct Span {
 /// steps, as the step stream shows it, the jump must fit in the acceleration the moves on either side leave.
 pub(super) const JUMP_WINDOW_STEPS: f64 = 16.0;
 
+/// Whether corners are capped for these limits: some motor has an acceleration limit (see
+/// [`super::junction_v2`]).
+pub fn caps_corners(limits: &[MotorLimit]) -> bool {
+    limits.iter().any(|l| l.max_accel.is_some())
+}
+
 /// Cruise-speed and acceleration caps for a motor whose rate and curvature along the span are at most
 /// `(rate, curvature)`: half the acceleration budget goes to the curvature term at the capped speed.
 pub(super) fn caps(

@@ -14,5 +14,5 @@ mod rest;
 mod spans;
 
 pub use junction::{JunctionSide, junction_v2};
-pub use limit::{MotorLimit, Span};
+pub use limit::{MotorLimit, Span, caps_corners};
 pub use spans::split;

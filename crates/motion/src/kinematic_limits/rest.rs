@@ -28,22 +28,21 @@ pub(super) struct RestEnd {
 }
 
 /// The acceleration (at most `accel`) with which the toolhead may leave the rest pose over the span, or arrive
-/// there, within the limits of every sampled motor (see the module's notes); zero where a joint cannot be
-/// evaluated.
+/// there, within the `limits` of motors without a closed form (see the module's notes); zero where a joint cannot
+/// be evaluated.
 pub(super) fn rest_accel(
     kin: &dyn Kinematics,
     limits: &[MotorLimit],
-    sampled: &[usize],
     end: RestEnd,
     accel: f64,
     minimum_cruise_ratio: f64,
 ) -> f64 {
-    let Some(rates) = joint_rates(kin, limits, sampled, end) else {
+    let Some(rates) = joint_rates(kin, limits, end) else {
         return 0.0;
     };
     let smoothed_from = (1.0 - minimum_cruise_ratio).max(0.0) * end.length / 2.0;
     let mut a = accel;
-    for (limit, rates) in sampled.iter().map(|&i| &limits[i]).zip(&rates) {
+    for (limit, rates) in limits.iter().zip(&rates) {
         let shape = RestShape::new(rates, end.length, smoothed_from);
         if let Some(max_velocity) = limit.max_velocity {
             a = a.min(max_velocity * max_velocity / (shape.speed * shape.speed));
@@ -63,21 +62,16 @@ fn sample_at(i: usize, length: f64) -> f64 {
     length * f * f
 }
 
-/// Signed `q'` of each sampled motor at the samples (`None` where the kinematics cannot give it).
-fn joint_rates(
-    kin: &dyn Kinematics,
-    limits: &[MotorLimit],
-    sampled: &[usize],
-    end: RestEnd,
-) -> Option<Vec<Vec<f64>>> {
+/// Signed `q'` of each limited motor at the samples (`None` where the kinematics cannot give it).
+fn joint_rates(kin: &dyn Kinematics, limits: &[MotorLimit], end: RestEnd) -> Option<Vec<Vec<f64>>> {
     let mut rows = vec![[0.0; 3]; kin.motors().len()];
-    let mut rates = vec![Vec::with_capacity(REST_SAMPLES); sampled.len()];
+    let mut rates = vec![Vec::with_capacity(REST_SAMPLES); limits.len()];
     for i in 1..=REST_SAMPLES {
         let s = sample_at(i, end.length);
         let p = [0, 1, 2].map(|k| end.pose[k] + end.away[k] * s);
         kin.jacobian(p, &mut rows).ok()?;
-        for (rate, &l) in rates.iter_mut().zip(sampled) {
-            let row = rows[limits[l].motor];
+        for (rate, limit) in rates.iter_mut().zip(limits) {
+            let row = rows[limit.motor];
             rate.push(row[0] * end.away[0] + row[1] * end.away[1] + row[2] * end.away[2]);
         }
     }
@@ -163,7 +157,7 @@ mod tests {
     #[test]
     fn leaving_the_straight_arm_the_elbow_speed_sets_the_acceleration() {
         let limits = [limit(0, Some(5.0), None), limit(1, Some(5.0), None)];
-        let a = rest_accel(&arm(), &limits, &[0, 1], IN_FROM_STRAIGHT, 3000.0, 0.5);
+        let a = rest_accel(&arm(), &limits, IN_FROM_STRAIGHT, 3000.0, 0.5);
         // a·g² ≤ V², with the samples' margin.
         let expected = 25.0 / (0.02 * SAMPLE_MARGIN * SAMPLE_MARGIN);
         assert!((a / expected - 1.0).abs() < 0.01, "{a} vs {expected}");
@@ -174,7 +168,7 @@ mod tests {
         // The elbow's acceleration while the toolhead accelerates is nearly zero at the fold; its jump to √(a·0.02)
         // read over 16 steps must stay within 100 rad/s²: a ≤ 100 · 16 · step / 0.02 (with margins).
         let limits = [limit(1, None, Some(100.0))];
-        let a = rest_accel(&arm(), &limits, &[0], IN_FROM_STRAIGHT, 3000.0, 0.5);
+        let a = rest_accel(&arm(), &limits, IN_FROM_STRAIGHT, 3000.0, 0.5);
         let window = JUMP_WINDOW_STEPS * std::f64::consts::TAU / 9600.0;
         let jump_only = 100.0 * window / (0.02 * SAMPLE_MARGIN * SAMPLE_MARGIN);
         assert!(a <= jump_only && a > 0.9 * jump_only, "{a} vs {jump_only}");
@@ -189,6 +183,6 @@ mod tests {
             ..IN_FROM_STRAIGHT
         };
         let limits = [limit(1, Some(5.0), None)];
-        assert_eq!(rest_accel(&arm(), &limits, &[0], outward, 3000.0, 0.5), 0.0);
+        assert_eq!(rest_accel(&arm(), &limits, outward, 3000.0, 0.5), 0.0);
     }
 }

@@ -53,12 +53,13 @@ pub fn split(
         })
         .collect();
     if rests.contains(&true) {
-        let sampled: Vec<usize> = (0..profiles.len())
-            .filter(|&i| profiles[i].1.is_sampled())
+        let sampled: Vec<MotorLimit> = profiles
+            .iter()
+            .filter(|(_, profile)| profile.is_sampled())
+            .map(|(limit, _)| *limit)
             .collect();
         let rest = Rest {
             kin,
-            limits,
             sampled: &sampled,
             minimum_cruise_ratio,
         };
@@ -125,11 +126,10 @@ fn span_caps(
     span
 }
 
-/// What caps the spans beside rest poses: the sampled motors' limits (indexes into `limits`).
+/// What caps the spans beside rest poses: the limits of the motors without a closed form.
 struct Rest<'a> {
     kin: &'a dyn Kinematics,
-    limits: &'a [MotorLimit],
-    sampled: &'a [usize],
+    sampled: &'a [MotorLimit],
     minimum_cruise_ratio: f64,
 }
 
@@ -170,7 +170,6 @@ impl Rest<'_> {
         let end = RestEnd { pose, away, length };
         rest_accel(
             self.kin,
-            self.limits,
             self.sampled,
             end,
             accel,

@@ -9,9 +9,11 @@
 //! A span is cut into runs where the motor rate provably keeps its sign: interval arithmetic on the formulas
 //! above over a stretch of the line (ρ² is a quadratic in `s`, so its range is exact) either excludes zero or
 //! the stretch is halved, down to a stretch of ~1e-13 s of travel around each turning point. On a run the
-//! motor is monotonic, so its steps are exactly those of [`StepRule::monotonic`]; each crossing is found
-//! by Newton's method on that one motor, worked on the run's inverse (distance as a function of the motor:
-//! a step is `ds/d(motor)` times the level's miss, no division), started from the last evaluated point with
+//! motor is monotonic, so its steps are exactly those of [`StepRule::monotonic`]. The shoulder's crossings
+//! have a closed form (`shoulder.rs`: where the line meets the circle of radius `L2` about the elbow), taken
+//! wherever its rounding is within the tolerance. Any other crossing is found by Newton's method on that
+//! one motor, worked on the run's inverse (distance as a function of the motor: a step is `ds/d(motor)`
+//! times the level's miss, no division), started from the last evaluated point with
 //! a second-order prediction and kept inside a bracket (bisection when Newton leaves it), so a crossing can
 //! be neither missed nor taken out of order. Levels go two at a time (`Crossings::try_pair`): both
 //! predicted from the last crossing and evaluated from the last point side by side in the two lanes of
@@ -32,6 +34,7 @@
 
 mod joint_line;
 mod lanes;
+mod shoulder;
 
 use kinematics::scara::{SHOULDER, ScaraGeometry, ScaraJoint};
 use kinematics::{Kinematics, ReachError};
@@ -39,6 +42,7 @@ use trapq::Piece;
 
 use self::joint_line::{JointLine, Point, Probe};
 use self::lanes::Lanes;
+use self::shoulder::ShoulderCircle;
 
 use crate::error::StepError;
 use crate::general::GeneralState;
@@ -81,6 +85,10 @@ struct Crossings<'a> {
     /// Distance tolerance of a crossing.
     tol: f64,
     failure: Option<(f64, ReachError)>,
+    /// The shoulder's closed form (`None` for the elbow), and whether it has taken crossings since Newton's
+    /// state above was last brought up to date.
+    circle: Option<ShoulderCircle>,
+    stale: bool,
 }
 
 impl Crossings<'_> {
@@ -269,9 +277,47 @@ fn strictly_between(x: f64, a: f64, b: f64) -> bool {
     between(x, a, b) && x != a && x != b
 }
 
+impl Crossings<'_> {
+    /// The crossing of `level`: in closed form for the shoulder where that is within the tolerance, else by
+    /// Newton's method.
+    #[inline]
+    fn crossing(&mut self, level: f64) -> f64 {
+        if let Some(circle) = &mut self.circle {
+            if let Some(root) = circle.crossing(level, self.before, self.after, self.tol) {
+                self.before = root;
+                self.stale = true;
+                return root;
+            }
+            if self.stale {
+                self.refresh(level);
+            }
+        }
+        self.solve(level)
+    }
+
+    /// After closed-form crossings, Newton's state describes an older point: evaluate in full at the last
+    /// crossing (its shoulder angle is within a step of `level`'s).
+    #[cold]
+    fn refresh(&mut self, level: f64) {
+        self.stale = false;
+        let q1_near = level - self.line.geometry.shoulder_zero();
+        match self.line.eval(self.before, q1_near) {
+            Ok(p) => {
+                self.anchor = p.probe;
+                self.chained = 0;
+                self.prev = (self.before, p.probe.f, p.probe.inv_slope);
+                self.bend = finite_or_zero(p.bend);
+            }
+            Err(e) => {
+                self.failure.get_or_insert((self.before, e));
+            }
+        }
+    }
+}
+
 impl LevelInverse for Crossings<'_> {
     fn next_time(&mut self, level: f64) -> f64 {
-        let root = self.solve(level);
+        let root = self.crossing(level);
         self.span.time_at(root)
     }
 
@@ -279,6 +325,11 @@ impl LevelInverse for Crossings<'_> {
 
     #[inline]
     fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
+        if self.circle.is_some() {
+            let ra = self.crossing(a);
+            let rb = self.crossing(b);
+            return (self.span.time_at(ra), self.span.time_at(rb));
+        }
         match self.try_pair(a, b) {
             Some((ra, rb)) => (self.span.time_at(ra), self.span.time_at(rb)),
             None => {
@@ -433,6 +484,8 @@ fn joint_run<S: StepSink + ?Sized>(
         chained: 0,
         tol,
         failure: None,
+        circle: ShoulderCircle::new(line, line.geometry.shoulder_zero()),
+        stale: false,
     };
     rule.monotonic(pa.f, pb.f, ta, print_time, &mut crossings, sink);
     match crossings.failure {

@@ -227,7 +227,7 @@ impl Crossings<'_> {
         }
         let xa = self.predict(la);
         let xb = self.predict(lb);
-        let [pa, pb] = self.line.eval_near_pair(Lanes([xa, xb]), &self.anchor);
+        let [pa, pb] = self.line.eval_near_pair(Lanes::new([xa, xb]), &self.anchor);
         let pa = pa.filter(|_| strictly_between(xa, self.before, self.after))?;
         self.chained += 1;
         self.anchor = pa;

@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 use kinematics::scara::{Joints, ScaraGeometry, ScaraJoint, normalise};
 use kinematics::{ElbowBranch, ReachError, unwrap_near};
 
-use super::lanes::{Lanes, both};
+use super::lanes::Lanes;
 use trapq::Piece;
 
 /// Margin of `|cos q2|` below 1 for the closed-form solver (closer spans use the general one).
@@ -213,9 +213,9 @@ impl JointLine {
             f,
             base: f,
             offset: 0.0,
-            inv_slope: self.inv_slope(lane(r), lane(rp), c2, s2).0[0],
+            inv_slope: self.inv_slope(lane(r), lane(rp), c2, s2).first(),
             q1,
-            link: [link[0].0[0], link[1].0[0]],
+            link: [link[0].first(), link[1].first()],
             elbow: [cos_q2, signed_sin],
         };
         Ok(Point {
@@ -252,26 +252,27 @@ impl JointLine {
         let inv = 1.0 / (shoulder[0] * elbow[0]);
         let tan_q1 = shoulder[1] * elbow[0] * inv;
         let tan_q2 = elbow[1] * shoulder[0] * inv;
-        let valid = both(
-            both(c2.strictly_within(-1.0, 1.0), shoulder[0].positive()),
-            both(
-                elbow[0].positive(),
-                both(tan_q1.small(SMALL_TAN), tan_q2.small(SMALL_TAN)),
-            ),
-        );
+        let valid = (c2.strictly_within(-1.0, 1.0))
+            .and(shoulder[0].positive())
+            .and(elbow[0].positive())
+            .and(tan_q1.small(SMALL_TAN))
+            .and(tan_q2.small(SMALL_TAN))
+            .lanes();
         let (d_q1, d_q2) = (small_atan(tan_q1), small_atan(tan_q2));
         let offset = from.offset + (self.weight_q2 * d_q2 + self.weight_q1 * d_q1);
         let f = from.base + offset;
         let inv_slope = self.inv_slope(r, rp, c2, s2);
         let q1 = from.q1 + d_q1;
+        let [f, offset, inv_slope, q1] = [f, offset, inv_slope, q1].map(Lanes::array);
+        let [link_u, link_v, c2, s2] = [link[0], link[1], c2, s2].map(Lanes::array);
         let lane = |i: usize| Probe {
-            f: f.0[i],
+            f: f[i],
             base: from.base,
-            offset: offset.0[i],
-            inv_slope: inv_slope.0[i],
-            q1: q1.0[i],
-            link: [link[0].0[i], link[1].0[i]],
-            elbow: [c2.0[i], s2.0[i]],
+            offset: offset[i],
+            inv_slope: inv_slope[i],
+            q1: q1[i],
+            link: [link_u[i], link_v[i]],
+            elbow: [c2[i], s2[i]],
         };
         [valid[0].then(|| lane(0)), valid[1].then(|| lane(1))]
     }
@@ -477,7 +478,7 @@ mod tests {
             let mut anchor = line.eval(0.0, 1.0).expect("reachable").probe;
             for i in 1..=300 {
                 let s = 0.1 * f64::from(i);
-                let [a, b] = line.eval_near_pair(Lanes([s - 0.05, s]), &anchor);
+                let [a, b] = line.eval_near_pair(Lanes::new([s - 0.05, s]), &anchor);
                 let (a, b) = (a.expect("small turn"), b.expect("small turn"));
                 for (at, p) in [(s - 0.05, a), (s, b)] {
                     let full = line.eval(at, p.q1).expect("reachable").probe;

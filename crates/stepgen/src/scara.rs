@@ -283,16 +283,43 @@ impl Crossings<'_> {
     #[inline]
     fn crossing(&mut self, level: f64) -> f64 {
         if let Some(circle) = &mut self.circle {
-            if let Some(root) = circle.crossing(level, self.before, self.after, self.tol) {
-                self.before = root;
-                self.stale = true;
-                return root;
+            let [root, _] = circle.crossings([level; 2], self.before, self.after, self.tol);
+            if let Some(root) = root {
+                return self.take(root);
             }
             if self.stale {
                 self.refresh(level);
             }
         }
         self.solve(level)
+    }
+
+    /// The shoulder's crossings of `a` and then `b`: those of the closed form's `pair` (solved side by
+    /// side), and one at a time where it found none.
+    #[inline]
+    fn crossing_pair(&mut self, pair: [Option<f64>; 2], a: f64, b: f64) -> (f64, f64) {
+        match pair {
+            [Some(ra), Some(rb)] => {
+                self.take(ra);
+                (ra, self.take(rb))
+            }
+            [Some(ra), None] => {
+                self.take(ra);
+                (ra, self.crossing(b))
+            }
+            _ => {
+                let ra = self.crossing(a);
+                (ra, self.crossing(b))
+            }
+        }
+    }
+
+    /// Take a closed-form crossing: the next level lies beyond it.
+    #[inline]
+    fn take(&mut self, root: f64) -> f64 {
+        self.before = root;
+        self.stale = true;
+        root
     }
 
     /// After closed-form crossings, Newton's state describes an older point: evaluate in full at the last
@@ -325,9 +352,9 @@ impl LevelInverse for Crossings<'_> {
 
     #[inline]
     fn next_pair(&mut self, a: f64, b: f64) -> (f64, f64) {
-        if self.circle.is_some() {
-            let ra = self.crossing(a);
-            let rb = self.crossing(b);
+        if let Some(circle) = &mut self.circle {
+            let pair = circle.crossings([a, b], self.before, self.after, self.tol);
+            let (ra, rb) = self.crossing_pair(pair, a, b);
             return (self.span.time_at(ra), self.span.time_at(rb));
         }
         match self.try_pair(a, b) {

@@ -44,6 +44,15 @@ mod repr {
     pub(super) fn sqrt(a: Repr) -> Repr {
         a.sqrt()
     }
+    /// `a`'s magnitude with `sign`'s sign bit, as `f64::copysign`.
+    #[inline(always)]
+    pub(super) fn copysign(a: Repr, sign: Repr) -> Repr {
+        a.copysign(sign)
+    }
+    #[inline(always)]
+    pub(super) fn abs(a: Repr) -> Repr {
+        a.abs()
+    }
     /// The sign bit flipped, as scalar negation does.
     #[inline(always)]
     pub(super) fn neg(a: Repr) -> Repr {
@@ -81,6 +90,12 @@ impl Mask {
         Mask(self.0 & other.0)
     }
 
+    /// Whether it holds in both lanes.
+    #[inline(always)]
+    pub(super) fn all(self) -> bool {
+        self.0 == 3
+    }
+
     #[inline(always)]
     pub(super) fn lanes(self) -> [bool; 2] {
         [self.0 & 1 != 0, self.0 & 2 != 0]
@@ -113,6 +128,17 @@ impl Lanes {
     #[inline(always)]
     pub(super) fn sqrt(self) -> Self {
         Lanes(repr::sqrt(self.0))
+    }
+
+    #[inline(always)]
+    pub(super) fn abs(self) -> Self {
+        Lanes(repr::abs(self.0))
+    }
+
+    /// Per lane: this magnitude with `sign`'s sign.
+    #[inline(always)]
+    pub(super) fn copysign(self, sign: Lanes) -> Self {
+        Lanes(repr::copysign(self.0, sign.0))
     }
 
     /// Per lane: whether `low < x < high` (false for NaN).
@@ -196,6 +222,10 @@ mod tests {
         );
         assert_eq!((1.0 / b).array(), [1.0 / 0.2, 1.0 / 3.0]);
         assert_eq!((-a).array(), [-0.1, -1e300]);
+        assert_eq!((-a).abs().array(), [0.1, 1e300]);
+        assert_eq!(a.copysign(Lanes::new([-2.0, 3.0])).array(), [-0.1, 1e300]);
+        assert!(Lanes::new([0.5, 1.0]).positive().all());
+        assert!(!Lanes::new([0.5, -1.0]).positive().all());
         assert_eq!(
             (-Lanes::splat(0.0)).array()[0].to_bits(),
             (-0.0f64).to_bits()

@@ -13,6 +13,7 @@
 //! evaluation error, not the root's, and is not counted against the tolerance.
 
 use super::joint_line::JointLine;
+use super::lanes::Lanes;
 
 /// Rotations between two `sin_cos` evaluations: each rounds within half an ulp per component, so a chain
 /// stays within a few 1e-15 rad of the full evaluation.
@@ -30,26 +31,34 @@ struct ElbowDirection {
 }
 
 impl ElbowDirection {
-    /// `(cos q1, sin q1)`, turned from the last one when the turn is small.
+    /// `(cos q1, sin q1)` at two angles (lane by lane), turned from the last direction when both turns are
+    /// small; the last direction becomes the second's.
     #[inline]
-    fn at(&mut self, q1: f64) -> [f64; 2] {
-        let d = q1 - self.q1;
-        if self.rotations < ROTATIONS && d.abs() <= SMALL_TURN {
+    fn at(&mut self, q1: [f64; 2]) -> [Lanes; 2] {
+        let d = Lanes::new(q1) - self.q1;
+        let (cos, sin) = if self.rotations < ROTATIONS && d.small(SMALL_TURN).all() {
             // sin d and 1 − cos d by their series; the turn is applied as a correction of the old values.
             let d2 = d * d;
             let sin_d = d
                 * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
             let versin_d = d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
             let (c, s) = (self.cos, self.sin);
-            self.cos = c - (c * versin_d + s * sin_d);
-            self.sin = s + (c * sin_d - s * versin_d);
             self.rotations += 1;
+            (
+                c - (c * versin_d + s * sin_d),
+                s + (c * sin_d - s * versin_d),
+            )
         } else {
-            (self.sin, self.cos) = q1.sin_cos();
             self.rotations = 0;
-        }
-        self.q1 = q1;
-        [self.cos, self.sin]
+            let [(sin_a, cos_a), (sin_b, cos_b)] = if q1[0] == q1[1] {
+                [q1[0].sin_cos(); 2]
+            } else {
+                q1.map(f64::sin_cos)
+            };
+            (Lanes::new([cos_a, cos_b]), Lanes::new([sin_a, sin_b]))
+        };
+        (self.q1, self.cos, self.sin) = (q1[1], cos.array()[1], sin.array()[1]);
+        [cos, sin]
     }
 }
 
@@ -111,47 +120,73 @@ impl ShoulderCircle {
         })
     }
 
-    /// The distance in `[before, after]` (either order) where the shoulder motor reads `level`, when the
-    /// closed form finds exactly one on the branch and its rounding is within `tol`.
+    /// The distances where the shoulder motor reads `levels[0]` and then `levels[1]` (the same level twice
+    /// for one): the first in `[before, after]` (either order), the second between the first and `after`,
+    /// each when the closed form finds exactly one on the branch and its rounding is within `tol`. The
+    /// second is `None` whenever the first is. Both quadratics are solved side by side in two lanes.
     #[inline]
-    pub(super) fn crossing(
+    pub(super) fn crossings(
         &mut self,
-        level: f64,
+        levels: [f64; 2],
         before: f64,
         after: f64,
         tol: f64,
-    ) -> Option<f64> {
-        let [cos, sin] = self.elbow.at(level - self.zero);
+    ) -> [Option<f64>; 2] {
+        let [cos, sin] = self.elbow.at(levels.map(|level| level - self.zero));
         let e = [self.l1 * cos, self.l1 * sin];
         let b = self.b - (e[0] * self.u[0] + e[1] * self.u[1]);
         let c = (self.c - 2.0 * (e[0] * self.p[0] + e[1] * self.p[1])) + self.links;
         let disc = b * b - self.a * c;
-        // No crossing (or a grazing one, which Newton's method takes) unless the discriminant is positive.
-        let root_disc = (disc > 0.0).then(|| disc.sqrt())?;
+        let root_disc = disc.sqrt();
         let q = -(b + root_disc.copysign(b));
         let roots = [q * self.inv_a, c / q];
-        let (lo, hi) = if before <= after {
-            (before, after)
-        } else {
-            (after, before)
+        // A root moves by the rounding of the coefficients (weighted by powers of s) over `|2·√disc|`, and
+        // by the rounding of `disc` itself over `2·a·√disc`.
+        let error_disc = 3.0 * f64::EPSILON * self.inv_a * (b * b + (self.a * c).abs());
+        let quadratic = Quadratic {
+            e: e.map(Lanes::array),
+            roots: roots.map(Lanes::array),
+            slack: (2.0 * tol * root_disc - error_disc).array(),
         };
-        let pick = |s: f64| {
+        // No crossing (or a grazing one, which Newton's method takes) unless the discriminant is positive.
+        let positive = disc.positive().lanes();
+        let first = positive[0]
+            .then(|| self.root(&quadratic, 0, before, after))
+            .flatten();
+        let second = first
+            .filter(|_| positive[1])
+            .and_then(|root| self.root(&quadratic, 1, root, after));
+        [first, second]
+    }
+
+    /// Lane `lane`'s root in `[from, to]` (either order) on the branch, if it is the only one and its
+    /// rounding is within the slack.
+    #[inline]
+    fn root(&self, quadratic: &Quadratic, lane: usize, from: f64, to: f64) -> Option<f64> {
+        let (lo, hi) = if from <= to { (from, to) } else { (to, from) };
+        let e = [quadratic.e[0][lane], quadratic.e[1][lane]];
+        let on_branch = |s: f64| {
             let (nu, nv) = (self.p[0] + self.u[0] * s, self.p[1] + self.u[1] * s);
-            let side = (e[0] * nv - e[1] * nu) * self.branch;
-            s >= lo && s <= hi && side > 0.0
+            s >= lo && s <= hi && (e[0] * nv - e[1] * nu) * self.branch > 0.0
         };
-        let root = match (pick(roots[0]), pick(roots[1])) {
+        let roots = [quadratic.roots[0][lane], quadratic.roots[1][lane]];
+        let root = match (on_branch(roots[0]), on_branch(roots[1])) {
             (true, false) => roots[0],
             (false, true) => roots[1],
             _ => return None,
         };
-        // A root moves by (rounding of the coefficients, weighted by powers of s) / |2·√disc|.
         let s = root.abs();
-        let error_disc = 4.0 * f64::EPSILON * (b * b + (self.a * c).abs());
-        let error =
-            self.error_c + 2.0 * self.error_b * s + self.error_a * s * s + error_disc * self.inv_a;
-        (error <= tol * root_disc).then_some(root)
+        let error = self.error_c + 2.0 * self.error_b * s + self.error_a * s * s;
+        (error <= quadratic.slack[lane]).then_some(root)
     }
+}
+
+/// Both lanes' quadratics, solved: the elbow positions, the two roots, and what rounding may still cost
+/// (twice the tolerance times `√disc`, less the discriminant's own rounding).
+struct Quadratic {
+    e: [[f64; 2]; 2],
+    roots: [[f64; 2]; 2],
+    slack: [f64; 2],
 }
 
 #[cfg(test)]
@@ -188,9 +223,13 @@ mod tests {
         let step = std::f64::consts::TAU / 9600.0;
         for i in 0..2000 {
             let q1 = 1.3 + step * f64::from(i) * if i % 700 < 350 { 1.0 } else { -1.0 };
-            let [c, s] = direction.at(q1);
-            let (sin, cos) = q1.sin_cos();
-            assert!((c - cos).abs() < 1e-15 && (s - sin).abs() < 1e-15, "{i}");
+            let q1 = [q1, q1 + step];
+            let [c, s] = direction.at(q1).map(Lanes::array);
+            for lane in 0..2 {
+                let (sin, cos) = q1[lane].sin_cos();
+                let error = (c[lane] - cos).abs().max((s[lane] - sin).abs());
+                assert!(error < 1e-15, "{i} lane {lane}: {error}");
+            }
         }
     }
 
@@ -217,7 +256,8 @@ mod tests {
                 let Ok(p) = line.eval(s, q1) else { break };
                 q1 = p.probe.q1;
                 // The level read here, searched for between the points 0.05 mm either side.
-                if let Some(root) = circle.crossing(p.probe.f, s - 0.05, s + 0.05, 1e-9) {
+                if let [Some(root), _] = circle.crossings([p.probe.f; 2], s - 0.05, s + 0.05, 1e-9)
+                {
                     let at = line.eval(root, q1).expect("reachable").probe.f;
                     assert!(
                         (at - p.probe.f).abs() < 5e-15,

@@ -57,25 +57,26 @@ pub(super) struct ArcEnds {
     pub(super) e_written: Option<f64>,
 }
 
-/// The XY centre at `offset` from `start`, when finite and as far from `target` as from `start`.
+/// The XY centre at `offset` from `start`, when finite and as far from `target` as from `start`,
+/// and the radius at the start (`Arc::radius`, to the bit: the statistics reuse it).
 /// (Inline, as [`check_radii`]: the fast path's arcs inlined both when they were beside them.)
 #[inline]
 pub(super) fn checked_centre(
     start: &Position,
     target: &Position,
     offset: [f64; 2],
-) -> Result<[f64; 2], ErrorKind> {
+) -> Result<([f64; 2], f64), ErrorKind> {
     let centre = [start[0] + offset[0], start[1] + offset[1]];
     if !(centre[0].is_finite() && centre[1].is_finite()) {
         return Err(ErrorKind::NumberOverflow);
     }
-    check_radii(start, target, &centre)?;
-    Ok(centre)
+    let radius = check_radii(start, target, &centre)?;
+    Ok((centre, radius))
 }
 
-/// Radius at start and end must agree (within 0.005 mm or 0.1 %).
+/// Radius at start and end must agree (within 0.005 mm or 0.1 %); gives the start radius.
 #[inline]
-fn check_radii(start: &Position, target: &Position, centre: &[f64; 2]) -> Result<(), ErrorKind> {
+fn check_radii(start: &Position, target: &Position, centre: &[f64; 2]) -> Result<f64, ErrorKind> {
     let start_radius = (start[0] - centre[0]).hypot(start[1] - centre[1]);
     let end_radius = (target[0] - centre[0]).hypot(target[1] - centre[1]);
     let diff = (start_radius - end_radius).abs();
@@ -86,5 +87,5 @@ fn check_radii(start: &Position, target: &Position, centre: &[f64; 2]) -> Result
             end_radius,
         });
     }
-    Ok(())
+    Ok(start_radius)
 }

@@ -24,6 +24,14 @@ pub(crate) trait FastSink {
         let value = Command::Move(value);
         self.take(Some(Spanned { span, value }));
     }
+
+    /// A plain `G2`/`G3`'s arc and its radius (`value.radius()`, to the bit), without the box of
+    /// a [`Command::Arc`].
+    #[inline(always)]
+    fn take_arc(&mut self, span: Span, value: ArcMove, _radius: f64) {
+        let value = Command::Arc(Box::new(value));
+        self.take(Some(Spanned { span, value }));
+    }
 }
 
 /// [`Interpreter::fast_line`]'s sink: the command kept.
@@ -137,12 +145,8 @@ impl Interpreter {
         let rapid = match bytes.get(start..start + 2)? {
             [b'G' | b'g', b'0'] => true,
             [b'G' | b'g', b'1'] => false,
-            [b'G' | b'g', b'2'] => {
-                return hand_over(self.plain_arc_line(bytes, start, line, true), sink);
-            }
-            [b'G' | b'g', b'3'] => {
-                return hand_over(self.plain_arc_line(bytes, start, line, false), sink);
-            }
+            [b'G' | b'g', b'2'] => return self.plain_arc_line(bytes, start, line, true, sink),
+            [b'G' | b'g', b'3'] => return self.plain_arc_line(bytes, start, line, false, sink),
             [b'G' | b'g', b'9'] if bytes.get(start + 2) == Some(&b'2') => {
                 return hand_over(self.plain_set_position_line(bytes, start, line), sink);
             }
@@ -164,12 +168,17 @@ impl Interpreter {
         start: usize,
         line: u64,
         clockwise: bool,
-    ) -> Option<(usize, Spanned<Command>)> {
+        sink: &mut impl FastSink,
+    ) -> Option<usize> {
         let command_end = start + 2;
         let (words, params_end, line_len) = plain_move_words::<ARC_SLOTS>(bytes, command_end)?;
-        let value = Command::Arc(Box::new(self.plain_arc(&words, clockwise)?));
-        let span = span_of(line, start, command_end.max(params_end));
-        Some((line_len, Spanned { span, value }))
+        let (value, radius) = self.plain_arc(&words, clockwise)?;
+        sink.take_arc(
+            span_of(line, start, command_end.max(params_end)),
+            value,
+            radius,
+        );
+        Some(line_len)
     }
 
     /// [`Self::plain_line`] for `G92` with X Y Z E words (slicers reset E this way).
@@ -196,8 +205,9 @@ impl Interpreter {
         Some(self.move_to(target, named, speed, rapid))
     }
 
-    /// [`Self::arc`] for the words of a plain line with I or J; `None` where that would fail.
-    fn plain_arc(&mut self, words: &MoveWords, clockwise: bool) -> Option<ArcMove> {
+    /// [`Self::arc`] for the words of a plain line with I or J, and the arc's radius; `None` where
+    /// that would fail.
+    fn plain_arc(&mut self, words: &MoveWords, clockwise: bool) -> Option<(ArcMove, f64)> {
         if !self.absolute_coord || self.plane != Plane::Xy {
             return None;
         }
@@ -212,9 +222,9 @@ impl Interpreter {
         if offset == [0.0; 2] {
             return None;
         }
-        let centre = checked_centre(&self.last, &target, offset).ok()?;
+        let (centre, radius) = checked_centre(&self.last, &target, offset).ok()?;
         let e_written = words.get(E_SLOT).map(|v| v * self.unit);
-        Some(self.commit_arc(ArcEnds {
+        let arc = self.commit_arc(ArcEnds {
             target,
             centre,
             offset,
@@ -222,7 +232,8 @@ impl Interpreter {
             turns: 0,
             speed,
             e_written,
-        }))
+        });
+        Some((arc, radius))
     }
 
     /// [`Self::target`] for the words of a plain line (not committed); `None` where that would

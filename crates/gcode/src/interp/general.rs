@@ -289,7 +289,7 @@ impl Interpreter {
         } else {
             return Err(Box::new((extent, ErrorKind::ArcMissingCentre)));
         };
-        let centre =
+        let (centre, _) =
             checked_centre(&start, &target, offset).map_err(|kind| Box::new((extent, kind)))?;
         let turns = match line.word(b'P') {
             None => 0,

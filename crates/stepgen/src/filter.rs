@@ -59,26 +59,19 @@ impl StepFilter {
         self.push_clock(self.clock_of(time), dir, sink);
     }
 
-    /// Steps at `print_time + t` for each `t` of `times` (non-decreasing), all in direction `dir`: the same
-    /// as pushing them one by one. Only the first can meet a reversal; each later one makes the step before
-    /// it final, so all but the last become final here, in one pass, and the last is held back in turn.
+    /// Steps at `clocks` (non-decreasing), all in direction `dir`: the same as pushing them one by one. Only
+    /// the first can meet a reversal; each later one makes the step before it final, so all but the last
+    /// become final here, in one pass, and the last is held back in turn.
     #[inline]
-    pub fn push_run<S: StepSink + ?Sized>(
-        &mut self,
-        times: &[f64],
-        print_time: f64,
-        dir: bool,
-        sink: &mut S,
-    ) {
-        let Some(&first) = times.first() else {
+    pub fn push_run<S: StepSink + ?Sized>(&mut self, clocks: &[u64], dir: bool, sink: &mut S) {
+        let Some(&first) = clocks.first() else {
             return;
         };
-        let mut body = times;
+        let mut body = clocks;
         if let Some((pending_clock, pending_dir)) = self.pending.take() {
-            let first_clock = self.clock_of(print_time + first);
-            if self.cancels(pending_clock, pending_dir, first_clock, dir) {
+            if self.cancels(pending_clock, pending_dir, first, dir) {
                 self.filtered_pairs += 1;
-                body = &times[1..];
+                body = &clocks[1..];
             } else {
                 self.emit(pending_clock, pending_dir, sink);
             }
@@ -87,35 +80,28 @@ impl StepFilter {
             return;
         };
         if !middle.is_empty() {
-            self.emit_run(middle, print_time, dir, sink);
+            self.emit_run(middle, dir, sink);
         }
-        self.pending = Some((self.clock_of(print_time + last), dir));
+        self.pending = Some((last, dir));
     }
 
-    /// The steps at `print_time + t` for each `t` of `times`, all final, into the outgoing slice.
+    /// The steps at `clocks`, all final, into the outgoing slice.
     #[inline]
-    fn emit_run<S: StepSink + ?Sized>(
-        &mut self,
-        times: &[f64],
-        print_time: f64,
-        dir: bool,
-        sink: &mut S,
-    ) {
+    fn emit_run<S: StepSink + ?Sized>(&mut self, clocks: &[u64], dir: bool, sink: &mut S) {
         if self.out_len > 0 && self.out_dir != dir {
             self.flush(sink);
         }
         self.out_dir = dir;
-        let clock_hz = self.clock_hz;
         let mut previous = self.last_emitted;
-        let mut rest = times;
+        let mut rest = clocks;
         while !rest.is_empty() {
             if self.out_len == OUT_CAPACITY {
                 self.flush(sink);
             }
             let room = OUT_CAPACITY - self.out_len;
             let (now, later) = rest.split_at(room.min(rest.len()));
-            for (slot, &t) in self.out[self.out_len..].iter_mut().zip(now) {
-                previous = previous.max(clock_at(print_time + t, clock_hz));
+            for (slot, &clock) in self.out[self.out_len..].iter_mut().zip(now) {
+                previous = previous.max(clock);
                 *slot = previous;
             }
             self.out_len += now.len();
@@ -186,7 +172,7 @@ impl StepFilter {
 
 /// See [`StepFilter::clock_of`].
 #[inline(always)]
-fn clock_at(time: f64, clock_hz: f64) -> u64 {
+pub(crate) fn clock_at(time: f64, clock_hz: f64) -> u64 {
     ((time * clock_hz + 0.5) as i64).max(0) as u64
 }
 
@@ -317,8 +303,9 @@ mod tests {
             for (len, dir, gap_us, after) in runs {
                 // Steps `gap_us` µs apart, some sharing a tick after rounding.
                 let times: Vec<f64> = (0..len).map(|i| (i / 2) as f64 * gap_us as f64 * 1e-6).collect();
-                for chunk in times.chunks(STEP_BATCH_FOR_TEST) {
-                    by_run.push_run(chunk, print_time, dir, &mut out_run);
+                let clocks: Vec<u64> = times.iter().map(|&t| by_run.clock_of(print_time + t)).collect();
+                for chunk in clocks.chunks(STEP_BATCH_FOR_TEST) {
+                    by_run.push_run(chunk, dir, &mut out_run);
                 }
                 for &t in &times {
                     by_step.push(print_time + t, dir, &mut out_step);

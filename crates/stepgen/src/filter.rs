@@ -28,6 +28,8 @@ pub struct StepFilter {
     out: [u64; OUT_CAPACITY],
     out_len: usize,
     out_dir: bool,
+    /// The smallest gap between neighbours of `out[..out_len]` (`u64::MAX` below two steps), told to the sink.
+    out_gap: u64,
 }
 
 impl StepFilter {
@@ -41,6 +43,7 @@ impl StepFilter {
             out: [0; OUT_CAPACITY],
             out_len: 0,
             out_dir: false,
+            out_gap: u64::MAX,
         }
     }
 
@@ -85,29 +88,39 @@ impl StepFilter {
         self.pending = Some((last, dir));
     }
 
-    /// The steps at `clocks`, all final, into the outgoing slice.
+    /// The steps at `clocks`, all final, into the outgoing slice. Each is kept no earlier than the one before
+    /// it, so the gaps between neighbours are plain differences, and their minimum is kept for the sink.
     #[inline]
     fn emit_run<S: StepSink + ?Sized>(&mut self, clocks: &[u64], dir: bool, sink: &mut S) {
         if self.out_len > 0 && self.out_dir != dir {
             self.flush(sink);
         }
-        self.out_dir = dir;
-        let mut previous = self.last_emitted;
         let mut rest = clocks;
-        while !rest.is_empty() {
+        while let Some((&first, after_first)) = rest.split_first() {
             if self.out_len == OUT_CAPACITY {
                 self.flush(sink);
             }
+            if self.out_len == 0 {
+                // The first step of a slice has no neighbour before it in the slice.
+                self.emit(first, dir, sink);
+                rest = after_first;
+                continue;
+            }
             let room = OUT_CAPACITY - self.out_len;
             let (now, later) = rest.split_at(room.min(rest.len()));
-            for (slot, &clock) in self.out[self.out_len..].iter_mut().zip(now) {
-                previous = previous.max(clock);
-                *slot = previous;
+            let (mut previous, mut gap) = (self.last_emitted, self.out_gap);
+            let slots = &mut self.out[self.out_len..self.out_len + now.len()];
+            for (slot, &clock) in slots.iter_mut().zip(now) {
+                let kept = previous.max(clock);
+                gap = gap.min(kept - previous);
+                previous = kept;
+                *slot = kept;
             }
             self.out_len += now.len();
+            self.last_emitted = previous;
+            self.out_gap = gap;
             rest = later;
         }
-        self.last_emitted = previous;
     }
 
     /// Whether a step at `clock` in direction `dir` removes the pending step with it (a quick reversal).
@@ -140,8 +153,9 @@ impl StepFilter {
     /// Hand the final steps collected so far to the sink (the held-back step stays held back).
     pub fn flush<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
         if self.out_len > 0 {
-            sink.steps(&self.out[..self.out_len], self.out_dir);
+            sink.steps_with_gap(&self.out[..self.out_len], self.out_dir, self.out_gap);
             self.out_len = 0;
+            self.out_gap = u64::MAX;
         }
     }
 
@@ -154,6 +168,9 @@ impl StepFilter {
         // Rounding can put a step one tick before the previous one only if both are within a tick; keep the
         // stream monotonic for consumers.
         let clock = clock.max(self.last_emitted);
+        if self.out_len > 0 {
+            self.out_gap = self.out_gap.min(clock - self.last_emitted);
+        }
         self.last_emitted = clock;
         self.out[self.out_len] = clock;
         self.out_len += 1;
@@ -298,7 +315,7 @@ mod tests {
             let mut by_run = StepFilter::new(16e6, 750e-6);
             let mut by_step = StepFilter::new(16e6, 750e-6);
             let mut reference = Reference::default();
-            let (mut out_run, mut out_step) = (Vec::new(), Vec::new());
+            let (mut out_run, mut out_step) = (GapChecked::default(), GapChecked::default());
             let mut print_time = 1.0;
             for (len, dir, gap_us, after) in runs {
                 // Steps `gap_us` µs apart, some sharing a tick after rounding.
@@ -327,10 +344,26 @@ mod tests {
                 filter.flush(out);
             }
             reference.commit();
-            proptest::prop_assert_eq!(&out_run, &reference.out);
-            proptest::prop_assert_eq!(&out_step, &reference.out);
+            proptest::prop_assert_eq!(&out_run.0, &reference.out);
+            proptest::prop_assert_eq!(&out_step.0, &reference.out);
             proptest::prop_assert_eq!(by_run.filtered_pairs(), reference.pairs);
             proptest::prop_assert_eq!(by_step.filtered_pairs(), reference.pairs);
+        }
+    }
+
+    /// Collects steps, checking the gap the filter tells with each slice.
+    #[derive(Default)]
+    struct GapChecked(Vec<Step>);
+
+    impl StepSink for GapChecked {
+        fn step(&mut self, clock: u64, dir: bool) {
+            self.0.push(Step { clock, dir });
+        }
+
+        fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+            let gaps = clocks.windows(2).map(|w| w[1].saturating_sub(w[0]));
+            assert_eq!(inner_gap, gaps.min().unwrap_or(u64::MAX), "{clocks:?}");
+            self.steps(clocks, dir);
         }
     }
 

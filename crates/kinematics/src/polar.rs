@@ -82,6 +82,8 @@ impl Polar {
         self.geometry().along_arm(x, y)
     }
 
+    /// Inlined into `check_segment`, which checks three points of every planned move.
+    #[inline]
     fn check_limits(&self, p: Vec3) -> Result<(), ReachError> {
         ensure_finite_point(p)?;
         let arm = match self.along_arm(p[0], p[1]) {

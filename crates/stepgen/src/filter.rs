@@ -28,6 +28,8 @@ pub struct StepFilter {
     out: [u64; OUT_CAPACITY],
     out_len: usize,
     out_dir: bool,
+    /// The smallest gap between neighbours of `out[..out_len]` (`u64::MAX` below two steps), told to the sink.
+    out_gap: u64,
 }
 
 impl StepFilter {
@@ -41,6 +43,7 @@ impl StepFilter {
             out: [0; OUT_CAPACITY],
             out_len: 0,
             out_dir: false,
+            out_gap: u64::MAX,
         }
     }
 
@@ -59,26 +62,19 @@ impl StepFilter {
         self.push_clock(self.clock_of(time), dir, sink);
     }
 
-    /// Steps at `print_time + t` for each `t` of `times` (non-decreasing), all in direction `dir`: the same
-    /// as pushing them one by one. Only the first can meet a reversal; each later one makes the step before
-    /// it final, so all but the last become final here, in one pass, and the last is held back in turn.
+    /// Steps at `clocks` (non-decreasing), all in direction `dir`: the same as pushing them one by one. Only
+    /// the first can meet a reversal; each later one makes the step before it final, so all but the last
+    /// become final here, in one pass, and the last is held back in turn.
     #[inline]
-    pub fn push_run<S: StepSink + ?Sized>(
-        &mut self,
-        times: &[f64],
-        print_time: f64,
-        dir: bool,
-        sink: &mut S,
-    ) {
-        let Some(&first) = times.first() else {
+    pub fn push_run<S: StepSink + ?Sized>(&mut self, clocks: &[u64], dir: bool, sink: &mut S) {
+        let Some(&first) = clocks.first() else {
             return;
         };
-        let mut body = times;
+        let mut body = clocks;
         if let Some((pending_clock, pending_dir)) = self.pending.take() {
-            let first_clock = self.clock_of(print_time + first);
-            if self.cancels(pending_clock, pending_dir, first_clock, dir) {
+            if self.cancels(pending_clock, pending_dir, first, dir) {
                 self.filtered_pairs += 1;
-                body = &times[1..];
+                body = &clocks[1..];
             } else {
                 self.emit(pending_clock, pending_dir, sink);
             }
@@ -87,41 +83,44 @@ impl StepFilter {
             return;
         };
         if !middle.is_empty() {
-            self.emit_run(middle, print_time, dir, sink);
+            self.emit_run(middle, dir, sink);
         }
-        self.pending = Some((self.clock_of(print_time + last), dir));
+        self.pending = Some((last, dir));
     }
 
-    /// The steps at `print_time + t` for each `t` of `times`, all final, into the outgoing slice.
+    /// The steps at `clocks`, all final, into the outgoing slice. Each is kept no earlier than the one before
+    /// it, so the gaps between neighbours are plain differences, and their minimum is kept for the sink.
     #[inline]
-    fn emit_run<S: StepSink + ?Sized>(
-        &mut self,
-        times: &[f64],
-        print_time: f64,
-        dir: bool,
-        sink: &mut S,
-    ) {
+    fn emit_run<S: StepSink + ?Sized>(&mut self, clocks: &[u64], dir: bool, sink: &mut S) {
         if self.out_len > 0 && self.out_dir != dir {
             self.flush(sink);
         }
-        self.out_dir = dir;
-        let clock_hz = self.clock_hz;
-        let mut previous = self.last_emitted;
-        let mut rest = times;
-        while !rest.is_empty() {
+        let mut rest = clocks;
+        while let Some((&first, after_first)) = rest.split_first() {
             if self.out_len == OUT_CAPACITY {
                 self.flush(sink);
             }
+            if self.out_len == 0 {
+                // The first step of a slice has no neighbour before it in the slice.
+                self.emit(first, dir, sink);
+                rest = after_first;
+                continue;
+            }
             let room = OUT_CAPACITY - self.out_len;
             let (now, later) = rest.split_at(room.min(rest.len()));
-            for (slot, &t) in self.out[self.out_len..].iter_mut().zip(now) {
-                previous = previous.max(clock_at(print_time + t, clock_hz));
-                *slot = previous;
+            let (mut previous, mut gap) = (self.last_emitted, self.out_gap);
+            let slots = &mut self.out[self.out_len..self.out_len + now.len()];
+            for (slot, &clock) in slots.iter_mut().zip(now) {
+                let kept = previous.max(clock);
+                gap = gap.min(kept - previous);
+                previous = kept;
+                *slot = kept;
             }
             self.out_len += now.len();
+            self.last_emitted = previous;
+            self.out_gap = gap;
             rest = later;
         }
-        self.last_emitted = previous;
     }
 
     /// Whether a step at `clock` in direction `dir` removes the pending step with it (a quick reversal).
@@ -154,8 +153,9 @@ impl StepFilter {
     /// Hand the final steps collected so far to the sink (the held-back step stays held back).
     pub fn flush<S: StepSink + ?Sized>(&mut self, sink: &mut S) {
         if self.out_len > 0 {
-            sink.steps(&self.out[..self.out_len], self.out_dir);
+            sink.steps_with_gap(&self.out[..self.out_len], self.out_dir, self.out_gap);
             self.out_len = 0;
+            self.out_gap = u64::MAX;
         }
     }
 
@@ -168,6 +168,9 @@ impl StepFilter {
         // Rounding can put a step one tick before the previous one only if both are within a tick; keep the
         // stream monotonic for consumers.
         let clock = clock.max(self.last_emitted);
+        if self.out_len > 0 {
+            self.out_gap = self.out_gap.min(clock - self.last_emitted);
+        }
         self.last_emitted = clock;
         self.out[self.out_len] = clock;
         self.out_len += 1;
@@ -186,7 +189,7 @@ impl StepFilter {
 
 /// See [`StepFilter::clock_of`].
 #[inline(always)]
-fn clock_at(time: f64, clock_hz: f64) -> u64 {
+pub(crate) fn clock_at(time: f64, clock_hz: f64) -> u64 {
     ((time * clock_hz + 0.5) as i64).max(0) as u64
 }
 
@@ -312,13 +315,14 @@ mod tests {
             let mut by_run = StepFilter::new(16e6, 750e-6);
             let mut by_step = StepFilter::new(16e6, 750e-6);
             let mut reference = Reference::default();
-            let (mut out_run, mut out_step) = (Vec::new(), Vec::new());
+            let (mut out_run, mut out_step) = (GapChecked::default(), GapChecked::default());
             let mut print_time = 1.0;
             for (len, dir, gap_us, after) in runs {
                 // Steps `gap_us` µs apart, some sharing a tick after rounding.
                 let times: Vec<f64> = (0..len).map(|i| (i / 2) as f64 * gap_us as f64 * 1e-6).collect();
-                for chunk in times.chunks(STEP_BATCH_FOR_TEST) {
-                    by_run.push_run(chunk, print_time, dir, &mut out_run);
+                let clocks: Vec<u64> = times.iter().map(|&t| by_run.clock_of(print_time + t)).collect();
+                for chunk in clocks.chunks(STEP_BATCH_FOR_TEST) {
+                    by_run.push_run(chunk, dir, &mut out_run);
                 }
                 for &t in &times {
                     by_step.push(print_time + t, dir, &mut out_step);
@@ -340,10 +344,26 @@ mod tests {
                 filter.flush(out);
             }
             reference.commit();
-            proptest::prop_assert_eq!(&out_run, &reference.out);
-            proptest::prop_assert_eq!(&out_step, &reference.out);
+            proptest::prop_assert_eq!(&out_run.0, &reference.out);
+            proptest::prop_assert_eq!(&out_step.0, &reference.out);
             proptest::prop_assert_eq!(by_run.filtered_pairs(), reference.pairs);
             proptest::prop_assert_eq!(by_step.filtered_pairs(), reference.pairs);
+        }
+    }
+
+    /// Collects steps, checking the gap the filter tells with each slice.
+    #[derive(Default)]
+    struct GapChecked(Vec<Step>);
+
+    impl StepSink for GapChecked {
+        fn step(&mut self, clock: u64, dir: bool) {
+            self.0.push(Step { clock, dir });
+        }
+
+        fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+            let gaps = clocks.windows(2).map(|w| w[1].saturating_sub(w[0]));
+            assert_eq!(inner_gap, gaps.min().unwrap_or(u64::MAX), "{clocks:?}");
+            self.steps(clocks, dir);
         }
     }
 

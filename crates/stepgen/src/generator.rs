@@ -127,7 +127,7 @@ impl<'k> StepGenerator<'k> {
                 Queue::Toolhead => &mut toolhead,
                 Queue::Extruder => &mut extruder,
             };
-            buffer.extend(mv.pieces());
+            mv.push_pieces(buffer);
             if toolhead.len() >= chunk || extruder.len() >= chunk {
                 self.run_chunk(&toolhead, &extruder, sinks)?;
                 toolhead.clear();

@@ -124,7 +124,7 @@ impl<S: StepSink + Send> MoveSink for StepPipeline<'_, S> {
             Queue::Toolhead => &mut self.toolhead,
             Queue::Extruder => &mut self.extruder_pieces,
         };
-        buffer.extend(mv.pieces());
+        mv.push_pieces(buffer);
         if buffer.len() >= CHUNK_PIECES {
             self.run_buffered();
         }
@@ -242,7 +242,7 @@ impl MoveSink for ChunkSender {
             Queue::Toolhead => &mut self.buffer.toolhead,
             Queue::Extruder => &mut self.buffer.extruder,
         };
-        buffer.extend(mv.pieces());
+        mv.push_pieces(buffer);
         if buffer.len() >= CHUNK_PIECES {
             self.send_buffered();
         }

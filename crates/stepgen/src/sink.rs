@@ -20,6 +20,15 @@ pub trait StepSink {
         }
     }
 
+    /// [`Self::steps`] for `clocks` whose smallest gap between neighbours is `inner_gap` (`u64::MAX` for
+    /// fewer than two): step generation knows it as it makes them, so a sink that needs it (statistics) need
+    /// not pass over the clocks again.
+    #[inline]
+    fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+        let _ = inner_gap;
+        self.steps(clocks, dir);
+    }
+
     /// The error the sink met, if any. Asked between chunks of work, not per step (a
     /// `Result` per step would cost the hot loop), so a failed sink stops its motor, and the run, early.
     fn failure(&self) -> Option<String> {
@@ -45,6 +54,11 @@ impl<S: StepSink + ?Sized> StepSink for &mut S {
         (**self).steps(clocks, dir);
     }
 
+    #[inline]
+    fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+        (**self).steps_with_gap(clocks, dir, inner_gap);
+    }
+
     fn failure(&self) -> Option<String> {
         (**self).failure()
     }
@@ -63,6 +77,13 @@ impl<S: StepSink> StepSink for Option<S> {
     fn steps(&mut self, clocks: &[u64], dir: bool) {
         if let Some(sink) = self {
             sink.steps(clocks, dir);
+        }
+    }
+
+    #[inline]
+    fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+        if let Some(sink) = self {
+            sink.steps_with_gap(clocks, dir, inner_gap);
         }
     }
 
@@ -103,6 +124,12 @@ impl<A: StepSink, B: StepSink> StepSink for Tee<A, B> {
     fn steps(&mut self, clocks: &[u64], dir: bool) {
         self.0.steps(clocks, dir);
         self.1.steps(clocks, dir);
+    }
+
+    #[inline]
+    fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+        self.0.steps_with_gap(clocks, dir, inner_gap);
+        self.1.steps_with_gap(clocks, dir, inner_gap);
     }
 
     fn failure(&self) -> Option<String> {

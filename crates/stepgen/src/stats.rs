@@ -199,14 +199,10 @@ impl StepStats {
     }
 }
 
-impl StepSink for StepStats {
+impl StepStats {
+    /// Take a run of clocks; `inner_gap` is the smallest gap between its neighbours when the caller knows it.
     #[inline]
-    fn step(&mut self, clock: u64, dir: bool) {
-        self.steps(&[clock], dir);
-    }
-
-    #[inline]
-    fn steps(&mut self, clocks: &[u64], dir: bool) {
+    fn record(&mut self, clocks: &[u64], dir: bool, inner_gap: Option<u64>) {
         let Some((&first, later)) = clocks.split_first() else {
             return;
         };
@@ -220,16 +216,16 @@ impl StepSink for StepStats {
         } else {
             clocks
         };
-        let Some(&last) = rest.last() else {
+        let (Some(&next), Some(&last)) = (rest.first(), rest.last()) else {
             self.net += if dir { 1 } else { -1 };
             return;
         };
-        let mut previous = self.last_clock;
-        let mut run_min_interval = u64::MAX;
-        for &clock in rest {
-            run_min_interval = run_min_interval.min(clock.saturating_sub(previous));
-            previous = clock;
-        }
+        // The gaps of `rest`, the first from the clock before it (on the very first run that gap is inside
+        // `clocks` too).
+        let run_min_interval = match inner_gap {
+            Some(gap) => gap.min(next.saturating_sub(self.last_clock)),
+            None => smallest_gap(self.last_clock, rest),
+        };
         self.min_interval = self.min_interval.min(run_min_interval);
         if run_min_interval < self.min_ticks {
             self.note_short_run(rest, self.last_clock);
@@ -240,6 +236,36 @@ impl StepSink for StepStats {
         self.steps += rest.len() as u64;
         let count = clocks.len() as i64;
         self.net += if dir { count } else { -count };
+    }
+}
+
+/// The smallest gap between consecutive clocks of `clocks`, the first from `previous` (a clock before the one
+/// ahead of it makes a gap of 0).
+#[inline]
+fn smallest_gap(previous: u64, clocks: &[u64]) -> u64 {
+    let mut before = previous;
+    let mut smallest = u64::MAX;
+    for &clock in clocks {
+        smallest = smallest.min(clock.saturating_sub(before));
+        before = clock;
+    }
+    smallest
+}
+
+impl StepSink for StepStats {
+    #[inline]
+    fn step(&mut self, clock: u64, dir: bool) {
+        self.record(&[clock], dir, None);
+    }
+
+    #[inline]
+    fn steps(&mut self, clocks: &[u64], dir: bool) {
+        self.record(clocks, dir, None);
+    }
+
+    #[inline]
+    fn steps_with_gap(&mut self, clocks: &[u64], dir: bool, inner_gap: u64) {
+        self.record(clocks, dir, Some(inner_gap));
     }
 }
 
@@ -360,6 +386,35 @@ mod tests {
                 summary.min_interval_ticks,
                 gaps.get(1..).and_then(|later| later.iter().min().copied())
             );
+        }
+    }
+
+    #[test]
+    fn runs_told_their_gaps_give_the_same_statistics() {
+        let clocks = bursty_clocks();
+        let mut plain = StepStats::new(16e6);
+        for chunk in clocks.chunks(7) {
+            plain.steps(chunk, true);
+        }
+        for run in [1, 2, 7, 64] {
+            let mut told = StepStats::new(16e6).audited(Some(20_000.0));
+            let mut untold = StepStats::new(16e6).audited(Some(20_000.0));
+            for chunk in clocks.chunks(run) {
+                let inner = chunk
+                    .windows(2)
+                    .map(|w| w[1] - w[0])
+                    .min()
+                    .unwrap_or(u64::MAX);
+                told.steps_with_gap(chunk, false, inner);
+                untold.steps(chunk, false);
+            }
+            assert_eq!(
+                told.summary(16e6, 0),
+                untold.summary(16e6, 0),
+                "runs of {run}"
+            );
+            assert_eq!(told.problem(), untold.problem(), "runs of {run}");
+            assert_eq!(told.summary(16e6, 0).steps, plain.summary(16e6, 0).steps);
         }
     }
 

@@ -15,7 +15,7 @@
 
 use std::f64::consts::{PI, TAU};
 
-use crate::filter::StepFilter;
+use crate::filter::{StepFilter, clock_at};
 use crate::sink::StepSink;
 
 /// Extra distance past the half-step point that a reversal needs (Klipper: `dist < -(half_step + 1e-9)`).
@@ -36,8 +36,8 @@ pub(crate) struct StepRule {
     /// Current step direction (Klipper's `sdir`; it starts "down").
     dir_up: bool,
     filter: StepFilter,
-    /// Levels, then times, of the steps being generated (kept here so that no buffer is zeroed per stretch).
-    batch: [f64; STEP_BATCH],
+    /// Clocks of the steps being generated (kept here so that no buffer is zeroed per stretch).
+    batch: [u64; STEP_BATCH],
 }
 
 impl StepRule {
@@ -49,7 +49,7 @@ impl StepRule {
             net: 0,
             dir_up: false,
             filter,
-            batch: [0.0; STEP_BATCH],
+            batch: [0; STEP_BATCH],
         }
     }
 
@@ -220,7 +220,7 @@ impl StepRule {
     }
 
     /// Every step from the commanded position towards `fb` (up or down), a batch at a time: one tight loop
-    /// finds each level (Klipper's arithmetic on the commanded position) and its time, then the filter and
+    /// finds each level (Klipper's arithmetic on the commanded position) and its clock, then the filter and
     /// sink take the batch. The levels form one serial chain of additions and a bed's ray rotation another;
     /// with both in one loop and in registers the CPU runs the chains side by side, and the divisions and
     /// square roots of a batch overlap them.
@@ -243,6 +243,9 @@ impl StepRule {
         let dir = if up { 1.0 } else { -1.0 };
         let due = |level: f64| if up { fb >= level } else { fb <= level };
         let mut commanded = self.commanded;
+        // Each time becomes its clock as it is found, in the same loop (no second pass over the batch).
+        let clock_hz = self.filter.clock_hz();
+        let clock = |t: f64| clock_at(print_time + t, clock_hz);
         loop {
             inverse.start_batch(commanded + half, dir);
             let mut count = 0;
@@ -253,11 +256,11 @@ impl StepRule {
                     let second = commanded + half;
                     commanded = second + half;
                     let (ta, tb) = inverse.next_pair(level, second);
-                    self.batch[count] = ta;
-                    self.batch[count + 1] = tb;
+                    self.batch[count] = clock(ta);
+                    self.batch[count + 1] = clock(tb);
                     count += 2;
                 } else {
-                    self.batch[count] = inverse.next_time(level);
+                    self.batch[count] = clock(inverse.next_time(level));
                     count += 1;
                 }
                 let more = due(commanded + half);
@@ -266,8 +269,7 @@ impl StepRule {
                 }
             };
             self.net += if up { count as i64 } else { -(count as i64) };
-            self.filter
-                .push_run(&self.batch[..count], print_time, up, sink);
+            self.filter.push_run(&self.batch[..count], up, sink);
             if !more {
                 break;
             }

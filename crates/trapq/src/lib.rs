@@ -130,20 +130,27 @@ impl TrapezoidMove {
 
     /// Split into up to three pieces, skipping zero-length phases, the way Klipper's `trapq_append` does:
     /// each later piece starts at the position reached at the end of the previous one.
-    pub fn pieces(&self) -> Pieces<'_> {
-        Pieces {
-            mv: self,
-            phase: 0,
-            print_time: self.print_time,
-            start_pos: self.start_pos,
-        }
+    pub fn pieces(&self) -> impl Iterator<Item = Piece> + use<> {
+        let mut phases = [None; 3];
+        let mut count = 0;
+        self.each_piece(|piece| {
+            phases[count] = Some(piece);
+            count += 1;
+        });
+        phases.into_iter().flatten()
     }
 
-    /// Append the pieces of [`Self::pieces`] to `out`: the same pieces, written in place with one capacity
-    /// check per move (extending from the iterator checks per piece; step generation takes every move this way).
+    /// Append the pieces of [`Self::pieces`] to `out`, with one capacity check per move (extending from the
+    /// iterator checks per piece; step generation takes every move this way).
     #[inline]
     pub fn push_pieces(&self, out: &mut Vec<Piece>) {
         out.reserve(3);
+        self.each_piece(|piece| out.push(piece));
+    }
+
+    /// Each phase of non-zero duration as a piece, in order: each starts where and when the one before ended.
+    #[inline(always)]
+    fn each_piece(&self, mut emit: impl FnMut(Piece)) {
         let (mut print_time, mut start_pos) = (self.print_time, self.start_pos);
         // The three phases written out (a loop over them costs more than the copying it does).
         let mut phase = |duration: f64, start_v: f64, half_accel: f64| {
@@ -161,7 +168,7 @@ impl TrapezoidMove {
             };
             print_time += duration;
             start_pos = piece.position(duration);
-            out.push(piece);
+            emit(piece);
         };
         phase(self.accel_t, self.start_v, 0.5 * self.accel);
         phase(self.cruise_t, self.cruise_v, 0.0);
@@ -185,54 +192,6 @@ impl TrapezoidMove {
         let d = self.distance();
         let (p, u) = (self.start_pos, self.axes_r);
         [p[0] + u[0] * d, p[1] + u[1] * d, p[2] + u[2] * d]
-    }
-}
-
-/// The pieces of a [`TrapezoidMove`], made one at a time (no buffer: the planner hands hundreds of
-/// thousands of moves a second to step generation).
-#[derive(Debug, Clone)]
-pub struct Pieces<'m> {
-    mv: &'m TrapezoidMove,
-    /// Next phase to look at: 0 accelerate, 1 cruise, 2 decelerate, 3 done.
-    phase: u8,
-    print_time: f64,
-    start_pos: Vec3,
-}
-
-impl Iterator for Pieces<'_> {
-    type Item = Piece;
-
-    #[inline]
-    fn next(&mut self) -> Option<Piece> {
-        let mv = self.mv;
-        while self.phase < 3 {
-            let (duration, start_v, half_accel) = match self.phase {
-                0 => (mv.accel_t, mv.start_v, 0.5 * mv.accel),
-                1 => (mv.cruise_t, mv.cruise_v, 0.0),
-                _ => (mv.decel_t, mv.cruise_v, -0.5 * mv.accel),
-            };
-            self.phase += 1;
-            if duration == 0.0 {
-                continue;
-            }
-            let piece = Piece {
-                print_time: self.print_time,
-                duration,
-                start_v,
-                half_accel,
-                start_pos: self.start_pos,
-                axes_r: mv.axes_r,
-                motion: mv.motion,
-            };
-            self.print_time += duration;
-            self.start_pos = piece.position(duration);
-            return Some(piece);
-        }
-        None
-    }
-
-    fn size_hint(&self) -> (usize, Option<usize>) {
-        (0, Some(3 - usize::from(self.phase)))
     }
 }
 

@@ -6,78 +6,11 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-/// The lanes' storage: one SSE2 register on x86_64 (`wide` picks the instructions per target).
-mod repr {
-    use wide::f64x2;
-
-    pub(super) type Repr = f64x2;
-
-    #[inline(always)]
-    pub(super) fn new(a: [f64; 2]) -> Repr {
-        f64x2::new(a)
-    }
-    #[inline(always)]
-    pub(super) fn splat(x: f64) -> Repr {
-        f64x2::splat(x)
-    }
-    #[inline(always)]
-    pub(super) fn array(v: Repr) -> [f64; 2] {
-        v.to_array()
-    }
-    #[inline(always)]
-    pub(super) fn add(a: Repr, b: Repr) -> Repr {
-        a + b
-    }
-    #[inline(always)]
-    pub(super) fn sub(a: Repr, b: Repr) -> Repr {
-        a - b
-    }
-    #[inline(always)]
-    pub(super) fn mul(a: Repr, b: Repr) -> Repr {
-        a * b
-    }
-    #[inline(always)]
-    pub(super) fn div(a: Repr, b: Repr) -> Repr {
-        a / b
-    }
-    #[inline(always)]
-    pub(super) fn sqrt(a: Repr) -> Repr {
-        a.sqrt()
-    }
-    /// `a`'s magnitude with `sign`'s sign bit, as `f64::copysign`.
-    #[inline(always)]
-    pub(super) fn copysign(a: Repr, sign: Repr) -> Repr {
-        a.copysign(sign)
-    }
-    #[inline(always)]
-    pub(super) fn abs(a: Repr) -> Repr {
-        a.abs()
-    }
-    /// The sign bit flipped, as scalar negation does.
-    #[inline(always)]
-    pub(super) fn neg(a: Repr) -> Repr {
-        -a
-    }
-    /// Per lane `low < x < high` (false for NaN), as bits 0 and 1.
-    #[inline(always)]
-    pub(super) fn within_bits(x: Repr, low: f64, high: f64) -> u32 {
-        (x.simd_gt(splat(low)) & x.simd_lt(splat(high))).to_bitmask()
-    }
-    /// Per lane `x > 0` (false for NaN), as bits 0 and 1.
-    #[inline(always)]
-    pub(super) fn positive_bits(x: Repr) -> u32 {
-        x.simd_gt(f64x2::ZERO).to_bitmask()
-    }
-    /// Per lane `|x| ≤ bound` (false for NaN), as bits 0 and 1.
-    #[inline(always)]
-    pub(super) fn small_bits(x: Repr, bound: f64) -> u32 {
-        x.abs().simd_le(splat(bound)).to_bitmask()
-    }
-}
+use wide::f64x2;
 
 /// Two values, one per lane.
 #[derive(Clone, Copy)]
-pub(super) struct Lanes(repr::Repr);
+pub(super) struct Lanes(f64x2);
 
 /// Per lane, whether a condition holds (bit 0: the first lane, bit 1: the second).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -105,18 +38,18 @@ impl Mask {
 impl Lanes {
     #[inline(always)]
     pub(super) fn new(values: [f64; 2]) -> Self {
-        Lanes(repr::new(values))
+        Lanes(f64x2::new(values))
     }
 
     #[inline(always)]
     pub(super) fn splat(x: f64) -> Self {
-        Lanes(repr::splat(x))
+        Lanes(f64x2::splat(x))
     }
 
     /// The two values.
     #[inline(always)]
     pub(super) fn array(self) -> [f64; 2] {
-        repr::array(self.0)
+        self.0.to_array()
     }
 
     /// The first lane's value.
@@ -127,36 +60,36 @@ impl Lanes {
 
     #[inline(always)]
     pub(super) fn sqrt(self) -> Self {
-        Lanes(repr::sqrt(self.0))
+        Lanes(self.0.sqrt())
     }
 
     #[inline(always)]
     pub(super) fn abs(self) -> Self {
-        Lanes(repr::abs(self.0))
+        Lanes(self.0.abs())
     }
 
     /// Per lane: this magnitude with `sign`'s sign.
     #[inline(always)]
     pub(super) fn copysign(self, sign: Lanes) -> Self {
-        Lanes(repr::copysign(self.0, sign.0))
+        Lanes(self.0.copysign(sign.0))
     }
 
     /// Per lane: whether `low < x < high` (false for NaN).
     #[inline(always)]
     pub(super) fn strictly_within(self, low: f64, high: f64) -> Mask {
-        Mask(repr::within_bits(self.0, low, high))
+        Mask((self.0.simd_gt(f64x2::splat(low)) & self.0.simd_lt(f64x2::splat(high))).to_bitmask())
     }
 
     /// Per lane: whether `x > 0` (false for NaN).
     #[inline(always)]
     pub(super) fn positive(self) -> Mask {
-        Mask(repr::positive_bits(self.0))
+        Mask(self.0.simd_gt(f64x2::ZERO).to_bitmask())
     }
 
     /// Per lane: whether `|x| ≤ bound` (false for NaN).
     #[inline(always)]
     pub(super) fn small(self, bound: f64) -> Mask {
-        Mask(repr::small_bits(self.0, bound))
+        Mask(self.0.abs().simd_le(f64x2::splat(bound)).to_bitmask())
     }
 }
 
@@ -172,7 +105,7 @@ macro_rules! lane_op {
             type Output = Lanes;
             #[inline(always)]
             fn $method(self, other: Lanes) -> Lanes {
-                Lanes(repr::$method(self.0, other.0))
+                Lanes($trait::$method(self.0, other.0))
             }
         }
 
@@ -180,7 +113,7 @@ macro_rules! lane_op {
             type Output = Lanes;
             #[inline(always)]
             fn $method(self, other: f64) -> Lanes {
-                Lanes(repr::$method(self.0, repr::splat(other)))
+                Lanes($trait::$method(self.0, f64x2::splat(other)))
             }
         }
 
@@ -188,7 +121,7 @@ macro_rules! lane_op {
             type Output = Lanes;
             #[inline(always)]
             fn $method(self, other: Lanes) -> Lanes {
-                Lanes(repr::$method(repr::splat(self), other.0))
+                Lanes($trait::$method(f64x2::splat(self), other.0))
             }
         }
     };
@@ -203,7 +136,7 @@ impl Neg for Lanes {
     type Output = Lanes;
     #[inline(always)]
     fn neg(self) -> Lanes {
-        Lanes(repr::neg(self.0))
+        Lanes(-self.0)
     }
 }
 

@@ -330,6 +330,8 @@ mod tests {
             terminator in "[ \t\r\nXYZEFIJ;*\\-]",
         ) {
             let number = match &frac { Some(f) => format!("{sign}{int}.{f}"), None => format!("{sign}{int}") };
+            // A `-` right at the start is no terminator: it begins the number in `rest`.
+            proptest::prop_assume!(!(number.is_empty() && terminator == "-"));
             let mut tail = terminator.into_bytes();
             tail.extend(rest);
             proptest::prop_assert_eq!(check_in_context(&number, &tail), Ok(()));

@@ -327,12 +327,8 @@ impl FastSink for StatsCollector {
     fn take(&mut self, made: Option<Spanned<Command>>) {
         self.stats.lines += 1;
         match made.map(|command| command.value) {
+            // Moves and arcs come through `take_move` and `take_arc`.
             None => {}
-            Some(Command::Move(m)) => self.add_fast_move(&m),
-            Some(Command::Arc(arc)) => {
-                self.codes.add_g(if arc.clockwise { 2 } else { 3 });
-                self.add_arc(&arc, arc.radius());
-            }
             Some(Command::SetPosition { .. }) => self.codes.add_g(92),
             Some(other) => {
                 debug_assert!(

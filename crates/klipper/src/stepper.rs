@@ -9,7 +9,7 @@ use std::f64::consts::{PI, TAU};
 
 use kinematics::polar::PolarGeometry;
 use kinematics::scara::ScaraGeometry;
-use kinematics::unwrap_near;
+use kinematics::{RADIAL_ROUNDING, unwrap_near};
 
 use crate::abi::{AF_X, AF_Y, AF_Z, Move, StepperKinematics};
 
@@ -38,6 +38,11 @@ impl Solver {
     pub fn position(&self, m: &Move, move_time: f64, commanded: f64, fused: bool) -> f64 {
         let p = m.coord(move_time, fused);
         let [x, y, _] = p;
+        if self.is_bed_with_centre()
+            && let Some(side) = radial_side_angle(m, x, y)
+        {
+            return side.map_or(commanded, |angle| unwrap_near(angle, commanded));
+        }
         let position = match self {
             Solver::Linear { coeffs } => linear(coeffs, p),
             Solver::PolarRadius if fused => x.mul_add(x, y * y).sqrt(),
@@ -65,6 +70,16 @@ impl Solver {
         }
     }
 
+    /// A bed whose angle is undefined at one point the nozzle reaches: the centre (no sideways arm offset).
+    #[inline]
+    fn is_bed_with_centre(&self) -> bool {
+        match self {
+            Solver::PolarAngle => true,
+            Solver::PolarBed(g) => g.arm_lateral_offset == 0.0,
+            _ => false,
+        }
+    }
+
     /// Which toolhead axes move this motor (`active_flags`).
     pub fn active_axes(&self) -> i32 {
         match self {
@@ -82,6 +97,39 @@ impl Solver {
     fn renormalises(&self) -> bool {
         matches!(self, Solver::PolarAngle | Solver::PolarBed(_))
     }
+}
+
+/// Within this distance of the centre (mm), a point on a move through the centre takes its bed angle from the
+/// move's direction, not from its own coordinates: their rounding (about 1e-16 of coordinates below a metre) would
+/// turn `atan2` by up to half a turn right at the centre, a burst of steps the MCU cannot take. Here it turns the
+/// angle by at most 1e-10 rad, and a line that misses the centre by `RADIAL_ROUNDING` by at most 1e-6 rad.
+const NEAR_CENTRE: f64 = 1e-3;
+
+/// The bed angle at `(x, y)` on move `m` near the polar centre: `Some(None)` where the bed holds its reading (within
+/// rounding of the centre, where a move ends or starts on it; or at rest near it), `Some(Some(angle))` on a move
+/// through the centre (within [`RADIAL_ROUNDING`]) within [`NEAR_CENTRE`] of it: the angle of the side the point is
+/// on (before the centre: opposite to the direction of travel; past it: along it), `None` elsewhere (the point's own
+/// angle is exact enough).
+#[inline]
+fn radial_side_angle(m: &Move, x: f64, y: f64) -> Option<Option<f64>> {
+    let distance2 = x * x + y * y;
+    if distance2 >= NEAR_CENTRE * NEAR_CENTRE {
+        return None;
+    }
+    let [rx, ry, _] = m.axes_r;
+    let r_xy = rx.hypot(ry);
+    if distance2 <= RADIAL_ROUNDING * RADIAL_ROUNDING || r_xy == 0.0 {
+        return Some(None);
+    }
+    let [sx, sy, _] = m.start_pos;
+    if (sx * ry - sy * rx).abs() > RADIAL_ROUNDING * r_xy {
+        return None;
+    }
+    Some(Some(if x * rx + y * ry < 0.0 {
+        (-ry).atan2(-rx)
+    } else {
+        ry.atan2(rx)
+    }))
 }
 
 /// A unit-vector motor (the common case) reads its axis exactly, as Klipper's cartesian kinematics does.

@@ -34,9 +34,11 @@ int jointspace_check_move(struct jointspace_machine *m, double start_x, double s
 int jointspace_caps_corners(struct jointspace_machine *m);
 double jointspace_junction_speed(struct jointspace_machine *m, const double *points, double prev_accel,
                                  double next_accel);
+int jointspace_rotation_centre(struct jointspace_machine *m, double *out);
 int jointspace_move_waypoints(struct jointspace_machine *m, double start_x, double start_y, double start_z,
                               double end_x, double end_y, double end_z, double speed, double accel,
-                              double bed_angle, double *out, int max);
+                              double bed_angle, int cut_spans, double *out, int max, char *error,
+                              size_t error_len);
 int jointspace_scara_pattern(struct jointspace_machine *m, int count, double cross_size, char *gcode,
                              size_t gcode_len, char *template_text, size_t template_len);
 /* The Hall-sensor centre scan ([jointspace] hall_* settings). */

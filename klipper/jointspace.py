@@ -198,6 +198,11 @@ class Machine:
         self.caps_corners = bool(lib.jointspace_caps_corners(self.handle))
         self._error = error
         self._margin = ffi.new("double *")
+        # A polar bed's centre (x, y, the tolerance within which a path meets it), or None.
+        centre = ffi.new("double[3]")
+        self.centre = (list(centre) if lib.jointspace_rotation_centre(self.handle, centre) == 0
+                       else None)
+        self.has_centre = self.centre is not None
 
     def stepper_kinematics(self, name):
         ffi, lib = self.ffi, self.lib
@@ -444,6 +449,21 @@ class JointspaceKinematics:
         return letters
 
     # -- moves ------------------------------------------------------------------------------------
+    def refuse_unreachable(self, start, end, reason=None):
+        """Raises the error of a G-code move that cannot be made (not homed, Z out of range, or `reason` from the
+        library), naming its target, before any piece of it is queued (the move transform cuts moves into pieces,
+        and a refused move must move nothing)."""
+        target = "X%.3f Y%.3f Z%.3f" % tuple(end[:3])
+        if reason is not None:
+            raise self.printer.command_error("Move out of range: %s (%s)" % (target, reason))
+        if "xy" not in self.homed:
+            raise self.printer.command_error("Must home axis first: %s" % (target,))
+        if end[2] != start[2] and not self.limit_z[0] <= end[2] <= self.limit_z[1]:
+            if self.limit_z[0] > self.limit_z[1]:
+                raise self.printer.command_error("Must home axis first: %s" % (target,))
+            raise self.printer.command_error(
+                "Move out of range: %s (Z beyond %.3f..%.3f)" % (target, self.limit_z[0], self.limit_z[1]))
+
     def check_move(self, move):
         if self.joint_space:
             return
@@ -683,18 +703,22 @@ MAX_WAYPOINTS = 4096
 
 
 class MoveSplitter:
-    """The G-code move transform: cuts each move where jointspace's planner limits change (near the polar centre,
-    SCARA singular poses, step-rate limits), so check_move caps only the pieces that need it, and turns a polar bed
-    in place on a 0.005 mm circle where a move passes through the centre or leaves it in a new direction. Chained:
-    the pieces go to the transform that was there before (bed_mesh, skew_correction...) or the toolhead."""
+    """The G-code move transform. It checks each G-code move whole before any part of it is queued (a refused move
+    moves nothing), turns a polar bed in place on a circle of the centre's tolerance where a move passes through the
+    centre or leaves it in a new direction, ends a move that ends within that circle on the centre itself, and (with
+    cut_spans) cuts each move where jointspace's planner limits change (near the polar centre, SCARA singular poses,
+    step-rate limits), so check_move caps only the pieces that need it. Chained: the pieces go to the transform that
+    was there before (bed_mesh, skew_correction...) or the toolhead."""
 
-    def __init__(self, printer, kin):
+    def __init__(self, printer, kin, cut_spans):
         self.printer = printer
         self.kin = kin
+        self.cut_spans = 1 if cut_spans else 0
         self.toolhead = printer.lookup_object("toolhead")
         machine = kin.machine
         self.ffi, self.lib, self.handle = machine.ffi, machine.lib, machine.handle
         self.buffer = self.ffi.new("double[]", 3 * MAX_WAYPOINTS)
+        self.error = self.ffi.new("char[]", ERROR_LEN)
         self.bed_angle = 0.
         gcode_move = printer.lookup_object("gcode_move")
         self.next_transform = gcode_move.set_move_transform(self, force=True)
@@ -707,23 +731,27 @@ class MoveSplitter:
         if newpos[0] == start[0] and newpos[1] == start[1]:
             self.next_transform.move(newpos, speed)
             return
+        self.kin.refuse_unreachable(start, newpos)
         if start[0] != 0. or start[1] != 0.:
             self.bed_angle = math.atan2(start[1], start[0])
         count = self.lib.jointspace_move_waypoints(
             self.handle, start[0], start[1], start[2], newpos[0], newpos[1], newpos[2], speed,
-            self.toolhead.max_accel, self.bed_angle, self.buffer, MAX_WAYPOINTS)
-        if count <= 1:
-            # Nothing to cut (or more pieces than worth it): the move stays whole and check_move caps it.
+            self.toolhead.max_accel, self.bed_angle, self.cut_spans, self.buffer, MAX_WAYPOINTS,
+            self.error, ERROR_LEN)
+        if count == -2:
+            self.kin.refuse_unreachable(start, newpos, self.ffi.string(self.error).decode())
+        if count < 1:
+            # More pieces than worth it: the move stays whole and check_move caps it.
             self.next_transform.move(newpos, speed)
             return
         b = self.buffer
-        for i in range(count - 1):
+        for i in range(count):
             f = b[3 * i + 2]
-            pos = [b[3 * i], b[3 * i + 1]] + [s + (e - s) * f for s, e in zip(start[2:], newpos[2:])]
+            rest = newpos[2:] if i == count - 1 else [s + (e - s) * f for s, e in zip(start[2:], newpos[2:])]
+            pos = [b[3 * i], b[3 * i + 1]] + list(rest)
             self.next_transform.move(pos, speed)
             if pos[0] != 0. or pos[1] != 0.:
                 self.bed_angle = math.atan2(pos[1], pos[0])
-        self.next_transform.move(newpos, speed)
 
 
 class Jointspace:
@@ -744,13 +772,17 @@ class Jointspace:
 
     def _handle_connect(self):
         kin = self.printer.lookup_object("toolhead").get_kinematics()
-        # centre_slowdown: klipper plans as Klipper's own polar does, whole moves only.
-        if (self.split_moves and isinstance(kin, JointspaceKinematics)
-                and kin.centre_slowdown == "exact"):
-            self.splitter = MoveSplitter(self.printer, kin)
+        if not isinstance(kin, JointspaceKinematics):
+            return
+        # centre_slowdown: klipper plans as Klipper's own polar does, whole moves only; a bed with a centre still
+        # turns in place there (a move cannot turn it half a revolution at one instant).
+        cut_spans = self.split_moves and kin.centre_slowdown == "exact"
+        if cut_spans or kin.machine.has_centre:
+            self.splitter = MoveSplitter(self.printer, kin, cut_spans)
 
     def get_status(self, eventtime):
-        status = {"version": self.version, "split_moves": self.splitter is not None}
+        status = {"version": self.version,
+                  "split_moves": self.splitter is not None and bool(self.splitter.cut_spans)}
         if self.centre_scan is not None:
             status["centre_scan"] = self.centre_scan.last_result
         return status

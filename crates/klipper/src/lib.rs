@@ -370,6 +370,24 @@ pub unsafe extern "C" fn jointspace_declared_home(m: *const Machine, xyz: *mut f
     }
 }
 
+/// A polar bed's centre, where its angle is undefined: `out[0..2]` its XY, `out[2]` the tolerance (mm) within which
+/// a path meets it (the move transform turns the bed in place on that circle). 0, or −1 when the machine has none.
+///
+/// # Safety
+/// `out` holds three doubles.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_rotation_centre(m: *const Machine, out: *mut f64) -> c_int {
+    match machine(m).and_then(|m| m.kinematics().rotation_centre()) {
+        Some(c) => {
+            let values = [c.point[0], c.point[1], c.tolerance];
+            // SAFETY: out holds three doubles.
+            unsafe { ptr::copy_nonoverlapping(values.as_ptr(), out, 3) };
+            0
+        }
+        None => -1,
+    }
+}
+
 /// How far `(x, y, z)` is from the edge of the machine's reach (mm, negative outside) into `margin`: 0, or −1
 /// when the machine has no such edge (Cartesian) or the point has no pose.
 ///
@@ -395,12 +413,14 @@ pub unsafe extern "C" fn jointspace_reach_margin(
 
 /// Where the plug-in's G-code move transform cuts the move `start → end` requested at `speed` and `accel`, so that
 /// Klipper slows only the pieces near a limit, and a polar bed turns in place at its centre (`bed_angle`: where the
-/// last move left the bed). Writes up to `max` waypoints as `x, y, fraction` triples (the fraction of the move
-/// each stands for, which Z and E follow; the last is the move's end) and returns how many, or −1 if more were
-/// needed.
+/// last move left the bed; `cut_spans` 0: only the centre shapes the move, no cuts at span boundaries). Writes up to
+/// `max` waypoints as `x, y, fraction` triples (the fraction of the move each stands for, which Z and E follow; the
+/// last is the move's end, or the centre when the end lies within its tolerance) and returns how many; −1 if more
+/// were needed; −2, with the reason in `error`, when a piece cannot be made (the whole move is then refused before
+/// any of it is queued).
 ///
 /// # Safety
-/// `out` holds `3 · max` doubles.
+/// `out` holds `3 · max` doubles; `error` holds `error_len` bytes or is null.
 #[unsafe(no_mangle)]
 #[allow(clippy::too_many_arguments)] // scalars, so the Python side calls without building arrays per move
 pub unsafe extern "C" fn jointspace_move_waypoints(
@@ -414,17 +434,27 @@ pub unsafe extern "C" fn jointspace_move_waypoints(
     speed: f64,
     accel: f64,
     bed_angle: f64,
+    cut_spans: c_int,
     out: *mut f64,
     max: c_int,
+    error: *mut c_char,
+    error_len: usize,
 ) -> c_int {
     let Some(m) = machine(m) else { return -1 };
-    let points = m.waypoints(
+    let points = match m.waypoints(
         [start_x, start_y, start_z],
         [end_x, end_y, end_z],
         speed,
         accel,
         bed_angle,
-    );
+        cut_spans != 0,
+    ) {
+        Ok(points) => points,
+        Err(e) => {
+            write_message(&e, error, error_len);
+            return -2;
+        }
+    };
     if points.len() > usize::try_from(max).unwrap_or(0) {
         return -1;
     }

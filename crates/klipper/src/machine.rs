@@ -14,7 +14,7 @@ use kinematics::{Kinematics, MachineParams, MotorMap, ReachError};
 use motion::kinematic_limits::{JunctionSide, MotorLimit, caps_corners, junction_v2, split};
 use motion::machine::MachineSetup;
 
-use crate::pieces::{Centre, Waypoint, waypoints};
+use crate::pieces::{Centre, Cuts, Waypoint, waypoints};
 use crate::stepper::Solver;
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -139,7 +139,7 @@ impl Machine {
 
     /// Whether the straight move `start → end` can be made (the whole segment: reach, centre, singular poses,
     /// joint limits, offsets included), and the cruise speed and acceleration its motor limits allow over its
-    /// whole length when requested at `speed` and `accel`.
+    /// whole length when requested at `speed` and `accel` (none when `speed` is not positive: the segment only).
     pub fn check_move(
         &self,
         start: [f64; 3],
@@ -149,6 +149,14 @@ impl Machine {
     ) -> Result<MoveVerdict, String> {
         let kin = self.kinematics();
         kin.check_segment(start, end).map_err(|e| e.to_string())?;
+        let ends_at_rest = start != end && kin.rests_at(end);
+        if !(speed > 0.0) {
+            // The segment only (centre_slowdown: klipper caps by Klipper's own rule).
+            return Ok(MoveVerdict {
+                caps: None,
+                ends_at_rest,
+            });
+        }
         let spans = split(
             kin,
             self.motor_limits(),
@@ -163,10 +171,7 @@ impl Machine {
             let accel = spans.iter().map(|s| s.max_accel).fold(accel, f64::min);
             (speed, accel)
         });
-        Ok(MoveVerdict {
-            caps,
-            ends_at_rest: start != end && kin.rests_at(end),
-        })
+        Ok(MoveVerdict { caps, ends_at_rest })
     }
 
     /// Whether corners need capping ([`Self::junction_speed`]): some motor has an acceleration limit.
@@ -189,7 +194,8 @@ impl Machine {
     }
 
     /// Where the G-code move transform cuts the move `start → end` (see [`crate::pieces`]); `bed_angle` is where
-    /// the last move left a polar bed.
+    /// the last move left a polar bed; `cut_spans`: also at the boundaries of its motor limits' spans (else only the
+    /// centre shapes the move). The reason, when a piece of it cannot be made.
     pub fn waypoints(
         &self,
         start: [f64; 3],
@@ -197,7 +203,8 @@ impl Machine {
         speed: f64,
         accel: f64,
         bed_angle: f64,
-    ) -> Vec<Waypoint> {
+        cut_spans: bool,
+    ) -> Result<Vec<Waypoint>, String> {
         let kin = self.kinematics();
         let limits = self.motor_limits();
         let cuts = |a: [f64; 3], b: [f64; 3]| {
@@ -205,14 +212,32 @@ impl Machine {
             let spans = split(kin, limits, a, b, speed, accel, self.cruise_ratio());
             spans.iter().map(|s| s.end / length).collect::<Vec<_>>()
         };
-        let centre = match &self.shape {
-            Shape::Polar(polar) if polar.params().arm_lateral_offset == 0.0 => Some(Centre {
-                at: [0.0, 0.0],
-                bed_angle,
-            }),
-            _ => None,
-        };
-        waypoints(start, end, centre, &cuts)
+        let centre = kin.rotation_centre().map(|c| Centre {
+            at: c.point,
+            radius: c.tolerance,
+            bed_angle,
+        });
+        let points = waypoints(start, end, centre, cut_spans.then_some(&cuts as Cuts));
+        self.check_route(start, &points, end[2])?;
+        Ok(points)
+    }
+
+    /// Every piece of a route the transform would queue can be made (so a refused move queues nothing).
+    fn check_route(&self, start: [f64; 3], points: &[Waypoint], end_z: f64) -> Result<(), String> {
+        let kin = self.kinematics();
+        let at = |p: &Waypoint| [p.x, p.y, start[2] + (end_z - start[2]) * p.fraction];
+        if let Some(beyond) = points.last().and_then(|p| self.beyond_polar_reach(at(p))) {
+            return Err(beyond);
+        }
+        let mut from = start;
+        for p in points {
+            let to = at(p);
+            // The reason alone: where along a piece it lies means nothing to the owner of the G-code line.
+            kin.check_segment(from, to)
+                .map_err(|e| e.reason.to_string())?;
+            from = to;
+        }
+        Ok(())
     }
 
     /// A SCARA's calibration pattern (`calibrate scara-pattern`'s crosses) for this machine, and the measurements
@@ -260,6 +285,19 @@ impl Machine {
 
     fn motor_limits(&self) -> &[MotorLimit] {
         &self.setup.planner.kinematic_limits
+    }
+
+    /// How far beyond a polar arm's reach `p` lies, in the owner's terms, when it does.
+    fn beyond_polar_reach(&self, p: [f64; 3]) -> Option<String> {
+        let Shape::Polar(polar) = &self.shape else {
+            return None;
+        };
+        let max = polar.params().arm.position_max?;
+        let margin = self.reach_margin(p).filter(|m| *m < 0.0)?;
+        Some(format!(
+            "{:.3} mm beyond the arm's reach of {max} mm",
+            -margin
+        ))
     }
 
     /// How far `p` is from the edge of what the machine reaches (mm, negative outside): the SCARA's annulus

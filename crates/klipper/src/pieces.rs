@@ -10,9 +10,6 @@
 
 use kinematics::Vec3;
 
-/// Radius (mm) of the circle about a polar centre inside which a move turns the bed in place; also the most the
-/// nozzle leaves the intended path there.
-pub const TURN_RADIUS: f64 = 0.005;
 /// Chords of a half turn along the turning circle.
 const TURN_CHORDS: usize = 12;
 
@@ -25,60 +22,65 @@ pub struct Waypoint {
     pub fraction: f64,
 }
 
-/// The polar centre, and the bed's angle when a move starts on it (where the last move left the bed).
+/// The polar centre, the radius within which a path meets it (the kinematics' centre tolerance: the circle the
+/// bed turns in place on, and the most the nozzle leaves the path there), and the bed's angle when a move starts
+/// on it (where the last move left the bed).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Centre {
     pub at: [f64; 2],
+    pub radius: f64,
     pub bed_angle: f64,
 }
 
-/// Waypoints of the move `start → end` (the end last). `cuts(a, b)` gives the fractions of `a → b` at which its
-/// motor limits change (the span boundaries); `centre` is set for an ideal polar machine.
+/// Where a move's span boundaries lie: `cuts(a, b)` gives the fractions of `a → b` at which its motor limits change.
+pub type Cuts<'a> = &'a dyn Fn(Vec3, Vec3) -> Vec<f64>;
+
+/// Waypoints of the move `start → end` (the end last, exactly `end` unless it is snapped onto the centre); `centre`
+/// is set for a polar machine whose bed has one; `cuts`, when set, cuts the straight pieces at their span
+/// boundaries (without it only the centre shapes the move).
 pub fn waypoints(
     start: Vec3,
     end: Vec3,
     centre: Option<Centre>,
-    cuts: &dyn Fn(Vec3, Vec3) -> Vec<f64>,
+    cuts: Option<Cuts>,
 ) -> Vec<Waypoint> {
+    let end = centre.map_or(end, |c| snapped_onto(c, end));
     let mut points = Vec::new();
-    match centre.and_then(|c| turn_in_place(start, end, c)) {
-        Some(turn) => {
-            push_line(
-                &mut points,
-                start,
-                turn.entry,
-                (0.0, turn.entry_fraction),
-                cuts,
-            );
-            points.extend(turn.arc);
-            points.push(Waypoint {
-                x: turn.exit[0],
-                y: turn.exit[1],
-                fraction: turn.exit_fraction,
-            });
-            if turn.exit_fraction < 1.0 {
-                push_line(&mut points, turn.exit, end, (turn.exit_fraction, 1.0), cuts);
-            }
-        }
-        None => push_line(&mut points, start, end, (0.0, 1.0), cuts),
+    let Some((c, route)) = centre.and_then(|c| Some((c, through_centre(start, end, c)?))) else {
+        push_line(&mut points, start, end, (0.0, 1.0), cuts);
+        return points;
+    };
+    let at_centre = [c.at[0], c.at[1], 0.0];
+    if route.arrives {
+        push_line(&mut points, start, at_centre, (0.0, route.fraction), cuts);
+    }
+    points.extend(route.turn);
+    if end[0] != c.at[0] || end[1] != c.at[1] {
+        push_line(&mut points, at_centre, end, (route.fraction, 1.0), cuts);
     }
     points
 }
 
-/// The straight piece `a → b` (fractions `span` of the original move), cut where its limits change.
-fn push_line(
-    points: &mut Vec<Waypoint>,
-    a: Vec3,
-    b: Vec3,
-    span: (f64, f64),
-    cuts: &dyn Fn(Vec3, Vec3) -> Vec<f64>,
-) {
+/// `end`, or the centre when `end` lies within its radius: the planner's snapping, so the move arrives along a ray.
+fn snapped_onto(centre: Centre, end: Vec3) -> Vec3 {
+    let [cx, cy] = centre.at;
+    let (dx, dy) = (end[0] - cx, end[1] - cy);
+    if dx * dx + dy * dy < centre.radius * centre.radius {
+        [cx, cy, end[2]]
+    } else {
+        end
+    }
+}
+
+/// The straight piece `a → b` (fractions `span` of the original move), cut where its limits change; it ends on `b`
+/// exactly.
+fn push_line(points: &mut Vec<Waypoint>, a: Vec3, b: Vec3, span: (f64, f64), cuts: Option<Cuts>) {
     let at = |f: f64| Waypoint {
         x: a[0] + (b[0] - a[0]) * f,
         y: a[1] + (b[1] - a[1]) * f,
         fraction: span.0 + (span.1 - span.0) * f,
     };
-    if a != b {
+    if let Some(cuts) = cuts.filter(|_| a != b) {
         points.extend(
             cuts(a, b)
                 .into_iter()
@@ -86,82 +88,92 @@ fn push_line(
                 .map(at),
         );
     }
-    points.push(at(1.0));
+    points.push(Waypoint {
+        x: b[0],
+        y: b[1],
+        fraction: span.1,
+    });
 }
 
-/// The part of a move that turns the bed in place: entry and exit on the turning circle and the arc between.
-struct Turn {
-    entry: Vec3,
-    entry_fraction: f64,
-    arc: Vec<Waypoint>,
-    exit: Vec3,
-    exit_fraction: f64,
+/// A move routed through the centre itself: straight in (when it starts outside the circle), the bed's turn in
+/// place there, straight out.
+struct Route {
+    /// It starts outside the circle and arrives at the centre along a ray.
+    arrives: bool,
+    /// The fraction of the move the centre stands for (where it passes closest).
+    fraction: f64,
+    /// Out along the ray the bed stands on to the circle, around it to the ray the move leaves along, back in to
+    /// the centre; empty when the two rays are the same.
+    turn: Vec<Waypoint>,
 }
 
-/// Where the move enters and leaves the turning circle, if it needs the bed to turn in place there: it passes
-/// inside the circle (through the centre or near it), or starts on the centre heading away from where the bed
-/// stands. A move that ends on the centre needs no turn (it arrives along a ray, the bed standing still).
-fn turn_in_place(start: Vec3, end: Vec3, centre: Centre) -> Option<Turn> {
+/// How the move `start → end` meets the centre, if it does: it passes within the circle, or starts within it in
+/// another direction than the bed stands (a move that ends on the centre from outside arrives along a ray, and needs
+/// no route). Every piece of the route is radial or on the circle, so the bed's angle is defined along all of them
+/// and it turns only on the circle, where its motor limits cap the speed.
+fn through_centre(start: Vec3, end: Vec3, centre: Centre) -> Option<Route> {
     let [cx, cy] = centre.at;
     let (sx, sy) = (start[0] - cx, start[1] - cy);
+    let (ex, ey) = (end[0] - cx, end[1] - cy);
     let (dx, dy) = (end[0] - start[0], end[1] - start[1]);
     let length2 = dx * dx + dy * dy;
-    if length2 == 0.0 {
+    let r = centre.radius;
+    let starts_inside = sx * sx + sy * sy < r * r;
+    let ends_on_centre = ex == 0.0 && ey == 0.0;
+    if length2 == 0.0 || (ends_on_centre && !starts_inside) {
         return None;
     }
-    let r = TURN_RADIUS;
-    // |s + t·d|² = r²: t² |d|² + 2 t (s·d) + |s|² − r² = 0.
-    let b = sx * dx + sy * dy;
-    let c = sx * sx + sy * sy - r * r;
-    let disc = b * b - length2 * c;
-    if disc <= 0.0 {
-        return None;
-    }
-    let root = disc.sqrt();
-    let (t1, t2) = ((-b - root) / length2, (-b + root) / length2);
-    let on_centre = sx == 0.0 && sy == 0.0;
-    if on_centre {
-        // Out along the bed's current ray to the circle, around to the move's direction, then on.
-        let heading = dy.atan2(dx);
-        let exit_t = t2.min(1.0);
-        let entry = [
-            cx + r * centre.bed_angle.cos(),
-            cy + r * centre.bed_angle.sin(),
-            start[2],
-        ];
-        let turn = angle_between(centre.bed_angle, heading);
-        if turn.abs() < 1e-12 {
+    let fraction = if starts_inside {
+        0.0
+    } else {
+        let t = (-(sx * dx + sy * dy) / length2).clamp(0.0, 1.0);
+        let (px, py) = (sx + t * dx, sy + t * dy);
+        if px * px + py * py >= r * r {
             return None;
         }
-        let exit = point(start, end, exit_t);
-        let arc = arc(centre.at, centre.bed_angle, turn, (0.0, 0.0));
-        return Some(Turn {
-            entry,
-            entry_fraction: 0.0,
-            arc,
-            exit,
-            exit_fraction: exit_t,
-        });
-    }
-    // Only a move that passes through the circle (both ends outside it) turns the bed there; one that ends inside
-    // it arrives along a nearly radial line and is slowed by its spans.
-    if t1 <= 0.0 || t2 >= 1.0 {
-        return None;
-    }
-    let (entry, exit) = (point(start, end, t1), point(start, end, t2));
-    let from = (entry[1] - cy).atan2(entry[0] - cx);
-    let to = (exit[1] - cy).atan2(exit[0] - cx);
-    // The short way round: the minor arc lies on the side the line passes (through the exact centre, a half turn
-    // counter-clockwise).
-    let turn = angle_between(from, to);
-    let arc = arc(centre.at, from, turn, (t1, t2));
-    Some(Turn {
-        entry,
-        entry_fraction: t1,
-        arc,
-        exit,
-        exit_fraction: t2,
+        t
+    };
+    let ray_in = if starts_inside {
+        centre.bed_angle
+    } else {
+        sy.atan2(sx)
+    };
+    let turn = if ends_on_centre {
+        Vec::new()
+    } else {
+        turn_at_centre(centre, ray_in, ey.atan2(ex), fraction)
+    };
+    Some(Route {
+        arrives: !starts_inside,
+        fraction,
+        turn,
     })
+}
+
+/// The bed's turn in place from ray `from` to ray `to`: out to the circle, along it, back to the centre (all at
+/// `fraction` of the move); nothing when the rays agree.
+fn turn_at_centre(centre: Centre, from: f64, to: f64, fraction: f64) -> Vec<Waypoint> {
+    let turn = angle_between(from, to);
+    if turn.abs() < 1e-12 {
+        return Vec::new();
+    }
+    let on_circle = |angle: f64| Waypoint {
+        x: centre.at[0] + centre.radius * angle.cos(),
+        y: centre.at[1] + centre.radius * angle.sin(),
+        fraction,
+    };
+    let chords = ((turn.abs() / std::f64::consts::PI) * TURN_CHORDS as f64)
+        .ceil()
+        .max(1.0) as usize;
+    let mut points: Vec<Waypoint> = (0..=chords)
+        .map(|i| on_circle(from + turn * (i as f64 / chords as f64)))
+        .collect();
+    points.push(Waypoint {
+        x: centre.at[0],
+        y: centre.at[1],
+        fraction,
+    });
+    points
 }
 
 /// `b − a` wrapped into (−π, π].
@@ -173,31 +185,4 @@ fn angle_between(a: f64, b: f64) -> f64 {
         d += std::f64::consts::TAU;
     }
     d
-}
-
-fn point(a: Vec3, b: Vec3, t: f64) -> Vec3 {
-    [
-        a[0] + (b[0] - a[0]) * t,
-        a[1] + (b[1] - a[1]) * t,
-        a[2] + (b[2] - a[2]) * t,
-    ]
-}
-
-/// Chord ends along the turning circle from angle `from` turning by `turn`, the last one excluded (the caller
-/// adds the exit); fractions spread over `span`.
-fn arc(centre: [f64; 2], from: f64, turn: f64, span: (f64, f64)) -> Vec<Waypoint> {
-    let chords = ((turn.abs() / std::f64::consts::PI) * TURN_CHORDS as f64)
-        .ceil()
-        .max(1.0) as usize;
-    (1..chords)
-        .map(|i| {
-            let f = i as f64 / chords as f64;
-            let angle = from + turn * f;
-            Waypoint {
-                x: centre[0] + TURN_RADIUS * angle.cos(),
-                y: centre[1] + TURN_RADIUS * angle.sin(),
-                fraction: span.0 + (span.1 - span.0) * f,
-            }
-        })
-        .collect()
 }

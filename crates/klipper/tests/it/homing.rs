@@ -162,7 +162,8 @@ fn unreachable_moves_are_refused_with_the_reason() {
         dir.path(),
         "polar.cfg",
     );
-    // Without the move transform, a move through the centre cannot be made (with it, the bed turns in place).
+    // Without span cuts a move through the centre is still made (the bed turns in place there); one beyond the
+    // arm's reach is refused naming its target and by how much.
     let text = std::fs::read_to_string(&polar).expect("config") + "split_moves: False\n";
     std::fs::write(&polar, text).expect("write");
     // Each refused move leaves the toolhead where it was; Klipper goes on with the next line.
@@ -180,7 +181,9 @@ fn unreachable_moves_are_refused_with_the_reason() {
         (
             &polar,
             "SET_KINEMATIC_POSITION X=300 Y=0 Z=0.5\nG1 X100 Y0 F3000\nG1 X-100 Y0\nG1 X350 Y0\n",
-            &["rotation centre", "outside its limits", "Move out of range"],
+            &[
+                "Move out of range: X350.000 Y0.000 Z0.500 (50.000 mm beyond the arm's reach of 300 mm)",
+            ],
         ),
     ];
     for (i, (config, gcode, phrases)) in cases.into_iter().enumerate() {

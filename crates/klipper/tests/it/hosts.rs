@@ -6,6 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+/// Seconds one batch-mode run may take (the longest, the polar bench in exact mode, takes under a minute here).
+const BATCH_TIMEOUT: u32 = 600;
+
 /// The hosts `batch.sh` knows.
 pub const KLIPPER: &str = "klipper";
 pub const KALICO: &str = "kalico";
@@ -59,8 +62,11 @@ impl Hosts {
     /// Runs `batch.sh` and returns its result; the output folder holds `queue_step.txt`, `klippy.log` and, in
     /// exact mode, `steps/<stepper>.txt`.
     pub fn batch(&self, host: &str, exact: bool, cfg: &Path, gcode: &Path, out: &Path) -> Run {
-        let mut command = Command::new(shared().join("klipper/batch.sh"));
+        // A host that shuts down in batch mode may never exit: a run gets BATCH_TIMEOUT, then counts as failed.
+        let mut command = Command::new("timeout");
         command
+            .args(["--kill-after=10", &BATCH_TIMEOUT.to_string()])
+            .arg(shared().join("klipper/batch.sh"))
             .args([cfg, gcode, out])
             .arg(host)
             .env("KLIP_DIR", &self.dir)

@@ -6,6 +6,7 @@
 #![allow(unsafe_code)]
 
 mod calibration;
+mod centre_grid;
 mod centre_scan;
 mod engine;
 mod examples;
@@ -14,6 +15,7 @@ mod hosts;
 mod install;
 mod layout;
 mod polar;
+mod routes;
 mod scara;
-mod solvers;
+pub mod solvers;
 mod splitting;

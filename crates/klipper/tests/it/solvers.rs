@@ -26,7 +26,7 @@ fn config(example: &str, extra: &str) -> CString {
     CString::new(text).expect("no NUL")
 }
 
-fn machine(example: &str, extra: &str) -> *mut Machine {
+pub fn machine(example: &str, extra: &str) -> *mut Machine {
     let mut error = [0 as c_char; 256];
     let text = config(example, extra);
     // SAFETY: valid strings and buffer.
@@ -81,7 +81,7 @@ impl Drop for Stepper {
     }
 }
 
-struct Owned(*mut Machine);
+pub struct Owned(pub *mut Machine);
 impl Drop for Owned {
     fn drop(&mut self) {
         // SAFETY: from jointspace_machine_new, freed once.

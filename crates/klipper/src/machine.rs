@@ -150,7 +150,7 @@ impl Machine {
         let kin = self.kinematics();
         kin.check_segment(start, end).map_err(|e| e.to_string())?;
         let ends_at_rest = start != end && kin.rests_at(end);
-        if !(speed > 0.0) {
+        if speed.is_nan() || speed <= 0.0 {
             // The segment only (centre_slowdown: klipper caps by Klipper's own rule).
             return Ok(MoveVerdict {
                 caps: None,

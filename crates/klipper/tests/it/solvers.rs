@@ -81,6 +81,7 @@ impl Drop for Stepper {
     }
 }
 
+#[derive(Debug)]
 pub struct Owned(pub *mut Machine);
 impl Drop for Owned {
     fn drop(&mut self) {

@@ -211,6 +211,12 @@ class Machine:
             raise self.error("no solver for %s" % (name,))
         return ffi.gc(sk, chelper.get_ffi()[1].free)
 
+    def commanded(self, sk):
+        return self.ffi.cast("struct jointspace_layout_probe *", sk).commanded_pos
+
+    def set_commanded(self, sk, value):
+        self.ffi.cast("struct jointspace_layout_probe *", sk).commanded_pos = value
+
     def linear_stepper_kinematics(self, cx, cy, cz):
         sk = self.lib.jointspace_linear_stepper_alloc(cx, cy, cz, _LIBRARY["fused"])
         return self.ffi.gc(sk, chelper.get_ffi()[1].free)
@@ -299,6 +305,7 @@ class JointspaceKinematics:
         self.machine = Machine(config)
         self.centre_slowdown = "exact"
         self.motor_steppers = []  # (machine motor, Klipper stepper) in Klipper's order, from the subclass
+        self.wrapped = {}         # stepper -> the solver a wrapper (input shaper) wraps now, once swapped
         self.joint_rails = {}     # section name -> rail of an XY joint that homes to an endstop
         self.homed = set()
         self.limit_z = (1.0, -1.0)
@@ -317,8 +324,10 @@ class JointspaceKinematics:
         self.steppers = [s for _, s in self.motor_steppers]
         # Kalico's homing looks for the rails (with endstops) that move each axis.
         self.rails = [rail for _, rail in rails if hasattr(rail, "get_steppers")]
+        self.own_solvers = {}
         for motor, s in self.motor_steppers:
-            s.set_stepper_kinematics(self.machine.stepper_kinematics(motor))
+            self.own_solvers[s] = self.machine.stepper_kinematics(motor)
+            s.set_stepper_kinematics(self.own_solvers[s])
             s.set_trapq(toolhead.get_trapq())
             if KALICO:
                 toolhead.register_step_generator(s.generate_steps)
@@ -396,13 +405,36 @@ class JointspaceKinematics:
                 coeffs = [0., 0., 0.]
                 coeffs[self.joint_names.index(motor)] = self.joint_scale(motor)
                 sk = self.machine.linear_stepper_kinematics(*coeffs)
-                saved[s] = s.set_stepper_kinematics(sk)
+                wrapped = self._is_wrapped(s)
+                saved[s] = (self._swap_solver(s, sk, wrapped), wrapped)
             yield
             self.toolhead.flush_step_generation()
         finally:
-            for s, sk in saved.items():
-                s.set_stepper_kinematics(sk)
+            for s, (sk, wrapped) in saved.items():
+                self._swap_solver(s, sk, wrapped)
             self.joint_space = False
+
+    def _swap_solver(self, s, sk, wrapped):
+        """Makes sk the solver of stepper s and returns the one it replaces. Where something wraps our solver
+        (`wrapped`: the input shaper allocates its own stepper_kinematics around it), the wrapped one is swapped and
+        the wrapper stays, so homing moves are shaped as Klipper's own kinematics shape theirs."""
+        if not wrapped:
+            return s.set_stepper_kinematics(sk)
+        wrapper = s.get_stepper_kinematics()
+        host_lib = chelper.get_ffi()[1]
+        # The new solver starts where the wrapper's motor stands (what set_stepper_kinematics keeps for a plain one).
+        self.machine.set_commanded(sk, self.machine.commanded(wrapper))
+        if host_lib.input_shaper_set_sk(wrapper, sk) < 0:
+            raise self.printer.command_error("jointspace: the input shaper refused a homing solver")
+        if hasattr(host_lib, "input_shaper_update_sk"):
+            host_lib.input_shaper_update_sk(wrapper)
+        inner, self.wrapped[s] = self.wrapped.get(s, self.own_solvers[s]), sk
+        return inner
+
+    def _is_wrapped(self, s):
+        # Only Klipper's input shaper wraps a stepper's solver (and only hosts with input_shaper_set_sk do it so).
+        return (s.get_stepper_kinematics() != self.own_solvers[s]
+                and hasattr(chelper.get_ffi()[1], "input_shaper_set_sk"))
 
     def home_in_joint_space(self, homing_state, order, start):
         """Homes the XY joints one after the other in joint space, each homing move turning one joint alone.

@@ -170,7 +170,13 @@ pub fn allocate(solver: Solver, fused: bool) -> *mut StepperKinematics {
         let sk = std::ptr::addr_of_mut!((*stepper).sk);
         (*sk).active_flags = solver.active_axes();
         (*sk).calc_position_cb = Some(calc_position);
-        (*sk).post_cb = solver.renormalises().then_some(renormalise as _);
+        // Every solver has a post_cb: Klipper's input shaper, once it wrapped a solver with one, keeps calling the
+        // wrapped solver's after the plug-in swaps a homing solver in under it (and back).
+        (*sk).post_cb = Some(if solver.renormalises() {
+            renormalise as _
+        } else {
+            keep as _
+        });
         sk
     }
 }
@@ -188,6 +194,9 @@ unsafe extern "C" fn calc_position(
         .solver
         .position(m, move_time, stepper.sk.commanded_pos, stepper.fused)
 }
+
+/// `post_cb` of a solver whose commanded position needs no fix-up.
+unsafe extern "C" fn keep(_sk: *mut StepperKinematics) {}
 
 /// `post_cb` of a bed that turns freely: keep the commanded angle within a turn, as Klipper's polar does.
 unsafe extern "C" fn renormalise(sk: *mut StepperKinematics) {

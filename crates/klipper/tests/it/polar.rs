@@ -135,3 +135,59 @@ fn exact_slowdown_keeps_the_bed_within_its_limit() {
         "Klipper's rule should be the looser one here"
     );
 }
+
+/// Homing keeps the input shaper: with `[input_shaper]`, `centre_slowdown: klipper` and `split_moves: False`,
+/// `G28` and a print send the MCU exactly what Klipper's own polar sends (joint-space homing swaps the solver the
+/// shaper wraps, not the shaper).
+#[test]
+fn homing_with_the_input_shaper_is_klippers_polar() {
+    let Some(hosts) = Hosts::get("homing_with_the_input_shaper_is_klippers_polar") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let golden = shared().join("golden/polar-cura-circle");
+    let shaper = "\n[input_shaper]\nshaper_freq_x: 40\nshaper_freq_y: 45\nshaper_type: mzv\n";
+    let base = std::fs::read_to_string(golden.join("printer.cfg")).expect("config") + shaper;
+    let base = crate::hosts::write(dir.path(), "base.cfg", &base);
+    let builtin = plugin_config(&base, &[], dir.path(), "builtin.cfg");
+    let text = std::fs::read_to_string(&builtin).expect("config");
+    std::fs::write(&builtin, text.replace("[jointspace]", "")).expect("write");
+    let ours = plugin_config(
+        &base,
+        &[(
+            "kinematics: polar",
+            "kinematics: jointspace_polar\ncentre_slowdown: klipper",
+        )],
+        dir.path(),
+        "ours.cfg",
+    );
+    let text = std::fs::read_to_string(&ours).expect("config") + "split_moves: False\n";
+    std::fs::write(&ours, text).expect("write");
+    let print = std::fs::read_to_string(golden.join("input.gcode")).expect("input");
+    let gcode = String::from("G28\n")
+        + &print
+            .lines()
+            .filter(|l| !l.starts_with("SET_KINEMATIC_POSITION"))
+            .collect::<Vec<_>>()
+            .join("\n");
+    let input = crate::hosts::write(dir.path(), "input.gcode", &gcode);
+    let reference = hosts.batch(
+        KLIPPER,
+        false,
+        &builtin,
+        &input,
+        &dir.path().join("builtin"),
+    );
+    let run = hosts.batch(KLIPPER, false, &ours, &input, &dir.path().join("ours"));
+    reference.expect_success("built-in polar with the shaper");
+    run.expect_success("jointspace_polar with the shaper");
+    let (a, b) = (reference.queue_step(), run.queue_step());
+    assert!(a.lines().count() > 1000, "too few messages");
+    let first_difference = a.lines().zip(b.lines()).position(|(x, y)| x != y);
+    assert!(
+        a == b,
+        "queue_step.txt differs from Klipper's polar at line {first_difference:?} ({} and {} lines)",
+        a.lines().count(),
+        b.lines().count()
+    );
+}

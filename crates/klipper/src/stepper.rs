@@ -184,9 +184,13 @@ unsafe extern "C" fn calc_position(
     // SAFETY: Klipper calls this only with a stepper allocated by `allocate` (so `sk` is the first field of a
     // JointspaceStepper) and a live move; it writes neither while the callback runs on this stepper.
     let (stepper, m) = unsafe { (&*sk.cast::<JointspaceStepper>(), &*m) };
-    stepper
-        .solver
-        .position(m, move_time, stepper.sk.commanded_pos, stepper.fused)
+    let commanded = stepper.sk.commanded_pos;
+    // A panic must not unwind into Klipper's C code: the motor then stays where it was commanded.
+    crate::guarded(commanded, crate::NO_BUFFER, || {
+        stepper
+            .solver
+            .position(m, move_time, commanded, stepper.fused)
+    })
 }
 
 /// `post_cb` of a bed that turns freely: keep the commanded angle within a turn, as Klipper's polar does.

@@ -8,8 +8,8 @@ use std::ffi::{CStr, CString, c_char};
 use jointspace_klipper::abi::{Move, StepperKinematics};
 use jointspace_klipper::machine::Machine;
 use jointspace_klipper::{
-    jointspace_check_move, jointspace_machine_free, jointspace_machine_new,
-    jointspace_stepper_alloc,
+    jointspace_check_move, jointspace_forward, jointspace_machine_free, jointspace_machine_new,
+    jointspace_move_waypoints, jointspace_stepper_alloc,
 };
 use proptest::prelude::*;
 
@@ -236,4 +236,351 @@ fn bad_config_is_refused_with_the_reason() {
     assert!(m.is_null());
     let reason = unsafe { CStr::from_ptr(error.as_ptr()) }.to_string_lossy();
     assert!(reason.contains("max_accel"), "{reason}");
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Nothing a G-code line or a config value holds crashes the host: the C interface on the example machines of
+// `klipper/examples/`, at the poses where the geometry degenerates, with huge, tiny and non-finite numbers.
+
+thread_local! {
+    /// Panics on this thread since the hook was installed (the library catches them; the tests count them).
+    static PANICS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// Runs `f` (inside `catch_unwind`, so a panic that escapes is a failure, not an abort) and counts the panics it
+/// raised, caught or not: the library turns a panic into a failure value, which must not pass for an answer.
+fn without_panic<T>(what: &str, f: impl FnOnce() -> T) -> T {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            PANICS.with(|p| p.set(p.get() + 1));
+            previous(info);
+        }));
+    });
+    let before = PANICS.with(std::cell::Cell::get);
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    let panics = PANICS.with(std::cell::Cell::get) - before;
+    match result {
+        Ok(v) if panics == 0 => v,
+        Ok(_) => panic!("{what}: {panics} panic(s) inside the library (caught there)"),
+        Err(_) => panic!("{what}: a panic crossed the C interface"),
+    }
+}
+
+/// A printer.cfg of `klipper/examples/` as the plug-in hands it over.
+fn example(name: &str) -> Owned {
+    let path = workspace_root().join(format!("klipper/examples/{name}.cfg"));
+    let text =
+        CString::new(std::fs::read_to_string(path).expect("example config")).expect("no NUL");
+    let mut error = [0 as c_char; 256];
+    // SAFETY: valid strings and buffer.
+    let m = unsafe { jointspace_machine_new(text.as_ptr(), 0, error.as_mut_ptr(), error.len()) };
+    assert!(!m.is_null(), "{}", reason(&error));
+    Owned(m)
+}
+
+fn reason(error: &[c_char]) -> String {
+    // SAFETY: the library NUL-terminates what it writes; the buffers start zeroed.
+    unsafe { CStr::from_ptr(error.as_ptr()) }
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// `jointspace_check_move`: (return code, caps, reason).
+fn check(
+    m: &Owned,
+    start: [f64; 3],
+    end: [f64; 3],
+    speed: f64,
+    accel: f64,
+) -> (i32, [f64; 2], String) {
+    let mut limits = [0.0; 2];
+    let mut error = [0 as c_char; 256];
+    let rc = without_panic("check_move", || {
+        // SAFETY: a live machine, two limit slots, a 256-byte buffer.
+        unsafe {
+            jointspace_check_move(
+                m.0,
+                start[0],
+                start[1],
+                start[2],
+                end[0],
+                end[1],
+                end[2],
+                speed,
+                accel,
+                limits.as_mut_ptr(),
+                error.as_mut_ptr(),
+                error.len(),
+            )
+        }
+    });
+    (rc, limits, reason(&error))
+}
+
+/// `jointspace_move_waypoints` (at most 256): the return code and the `(x, y, fraction)` triples written.
+fn waypoints(
+    m: &Owned,
+    start: [f64; 3],
+    end: [f64; 3],
+    speed: f64,
+    accel: f64,
+    bed: f64,
+) -> (i32, Vec<[f64; 3]>) {
+    let mut out = vec![0.0; 3 * 256];
+    let rc = without_panic("move_waypoints", || {
+        // SAFETY: a live machine; out holds 3 · 256 doubles.
+        unsafe {
+            jointspace_move_waypoints(
+                m.0,
+                start[0],
+                start[1],
+                start[2],
+                end[0],
+                end[1],
+                end[2],
+                speed,
+                accel,
+                bed,
+                out.as_mut_ptr(),
+                256,
+            )
+        }
+    });
+    let n = usize::try_from(rc).unwrap_or(0);
+    (
+        rc,
+        out.chunks(3).take(n).map(|c| [c[0], c[1], c[2]]).collect(),
+    )
+}
+
+/// A refusal or an answer Klipper can apply: −1 with a reason that is not a caught panic, or flags with caps that
+/// are positive and finite (only where speed and acceleration were requested).
+fn assert_clean_check(
+    what: &str,
+    (rc, caps, reason): &(i32, [f64; 2], String),
+    speed: f64,
+    accel: f64,
+) {
+    match rc {
+        -1 => {
+            assert!(!reason.is_empty(), "{what}: refused without a reason");
+            assert!(!reason.contains("internal error"), "{what}: {reason}");
+        }
+        0..=3 => {
+            if rc & 1 == 1 {
+                assert!(
+                    speed > 0.0 && accel > 0.0,
+                    "{what}: caps for a segment-only check"
+                );
+                assert!(
+                    caps.iter().all(|c| *c > 0.0 && c.is_finite()),
+                    "{what}: caps {caps:?}"
+                );
+                assert!(
+                    caps[0] <= speed && caps[1] <= accel,
+                    "{what}: caps {caps:?} above the request"
+                );
+            }
+        }
+        _ => panic!("{what}: return code {rc}"),
+    }
+}
+
+/// Waypoints are finite, their fractions grow to exactly 1; or the move is refused (−1).
+fn assert_clean_waypoints(what: &str, (rc, points): &(i32, Vec<[f64; 3]>)) {
+    if *rc == -1 {
+        return;
+    }
+    assert!(*rc >= 1, "{what}: {rc} waypoints");
+    assert!(
+        points.iter().flatten().all(|v| v.is_finite()),
+        "{what}: {points:?}"
+    );
+    assert!(
+        points.windows(2).all(|w| w[0][2] <= w[1][2]),
+        "{what}: fractions {points:?}"
+    );
+    assert_eq!(points.last().map(|p| p[2]), Some(1.0), "{what}: {points:?}");
+}
+
+/// The FEKT example's home pose direction and shoulder direction at its endstops (45° and a 105° elbow motor, in
+/// the machine's radians), and the arm's full reach from its link lengths.
+fn scara_straight_arm_directions(m: &Owned) -> ([f64; 2], f64) {
+    let motors = [45f64.to_radians(), 105f64.to_radians(), 0.0];
+    let mut xyz = [0.0; 3];
+    let mut error = [0 as c_char; 256];
+    // SAFETY: three motors, three coordinates, a 256-byte buffer.
+    let rc = unsafe {
+        jointspace_forward(
+            m.0,
+            motors.as_ptr(),
+            xyz.as_mut_ptr(),
+            error.as_mut_ptr(),
+            error.len(),
+        )
+    };
+    assert_eq!(rc, 0, "{}", reason(&error));
+    let config = std::fs::read_to_string(workspace_root().join("klipper/examples/scara.cfg"))
+        .expect("config");
+    let length = |key: &str| -> f64 {
+        config
+            .lines()
+            .find_map(|l| l.strip_prefix(key)?.trim().parse().ok())
+            .expect("link length")
+    };
+    let reach = length("link1_length:") + length("link2_length:");
+    ([xyz[1].atan2(xyz[0]), motors[0]], reach)
+}
+
+/// Issue (a): a 1e-10 mm move from the SCARA's straight arm, and from points 1e-12..1e-6 mm inside it, put both cuts
+/// of `motion::kinematic_limits`' span splitter within its 1e-9 mm tolerance of each other, leaving no span, and
+/// the rest fit indexed the empty list (a panic in check_move and move_waypoints, which aborted Klipper).
+#[test]
+fn a_tiny_move_at_the_straight_arm_is_answered() {
+    let m = example("scara");
+    let (directions, reach) = scara_straight_arm_directions(&m);
+    assert!(
+        (directions[0] - PI / 2.0).abs() < 1e-9,
+        "home pose along {}",
+        directions[0]
+    );
+    let mut answered = 0;
+    for angle in directions {
+        let (c, s) = (angle.cos(), angle.sin());
+        for inside in [0.0, 1e-12, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6] {
+            let start = [(reach - inside) * c, (reach - inside) * s, 1.0];
+            for d in [
+                [-c, -s, 0.0],
+                [c, s, 0.0],
+                [-s, c, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ] {
+                let end = [0, 1, 2].map(|k| start[k] + 1e-10 * d[k]);
+                let what = format!("{angle} rad, {inside} mm inside, along {d:?}");
+                let verdict = check(&m, start, end, 150.0, 2000.0);
+                assert_clean_check(&what, &verdict, 150.0, 2000.0);
+                answered += usize::from(verdict.0 >= 0);
+                assert_clean_waypoints(&what, &waypoints(&m, start, end, 150.0, 2000.0, 0.0));
+                assert_clean_waypoints(&what, &waypoints(&m, end, start, 150.0, 2000.0, 0.0));
+            }
+        }
+    }
+    // The inward moves from inside the reach are legal: they are answered, not refused.
+    assert!(answered >= 20, "only {answered} moves answered");
+    // Straight in from 1e-6 mm inside the straight arm: it ends at rest beside the singular pose, with a cruise cap
+    // the acceleration from rest reaches over the move (positive: Klipper divides by it).
+    let start = [0.0, reach - 1e-6, 1.0];
+    let (rc, caps, reason) = check(&m, start, [0.0, reach - 1e-6 - 1e-10, 1.0], 150.0, 2000.0);
+    assert_eq!(rc, 3, "{reason}");
+    assert!(
+        caps[0] > 0.0 && caps[0] < (2.0 * 2000.0 * 1e-10f64).sqrt() * 1.001,
+        "{caps:?}"
+    );
+}
+
+/// Issue (b): a move from the polar centre to a coordinate Python reads as infinity (`G1 X1e400`). Inside, the line's
+/// direction was NaN (inf/inf) and the bed's curvature bound clamped NaN (a panic in move_waypoints). It is
+/// refused at the boundary with the coordinate named, and the machine's own answer no longer panics.
+#[test]
+fn a_move_from_the_polar_centre_to_infinity_is_refused() {
+    let m = example("polar");
+    let centre = [0.0, 0.0, 1.0];
+    for (end, named) in [
+        ([f64::INFINITY, 0.0, 1.0], "X=inf"),
+        ([0.0, f64::NEG_INFINITY, 1.0], "Y=-inf"),
+        ([f64::INFINITY, 1.0, 1.0], "X=inf"),
+        ([0.0, 0.0, f64::NAN], "Z=NaN"),
+        ([1e300, 0.0, 1.0], "X=1e300 mm"),
+    ] {
+        let (rc, _, reason) = check(&m, centre, end, 100.0, 3000.0);
+        assert_eq!(rc, -1);
+        assert!(reason.contains(named), "{reason}");
+        assert!(
+            reason.contains("finite coordinate") || reason.contains("beyond any machine"),
+            "{reason}"
+        );
+        assert_eq!(waypoints(&m, centre, end, 100.0, 3000.0, 0.0).0, -1);
+        // SAFETY: the machine lives while `m` does.
+        let machine = unsafe { &*m.0 };
+        let inside = without_panic("Machine::waypoints", || {
+            machine.waypoints(centre, end, 100.0, 3000.0, 0.0)
+        });
+        assert!(!inside.is_empty());
+        let refused = without_panic("Machine::check_move", || {
+            machine.check_move(centre, end, 100.0, 3000.0)
+        });
+        assert!(refused.is_err(), "{refused:?}");
+    }
+    // Speed and acceleration: non-finite is refused, ≤ 0 checks the segment only.
+    for (speed, accel, named) in [
+        (f64::NAN, 3000.0, "speed=NaN"),
+        (100.0, f64::INFINITY, "accel=inf"),
+    ] {
+        let (rc, _, reason) = check(&m, [10.0, 0.0, 1.0], [20.0, 0.0, 1.0], speed, accel);
+        assert_eq!(rc, -1);
+        assert!(reason.contains(named), "{reason}");
+    }
+    let (rc, _, reason) = check(&m, [-100.0, 1.0, 1.0], [100.0, 1.0, 1.0], 0.0, 3000.0);
+    assert_eq!(rc, 0, "segment only, no caps: {reason}");
+}
+
+/// Issue (c): a move ending in the SCARA's singular band with a 200-digit Z (`Z1e199`): its squared length
+/// overflowed, the line's length was infinite, every cut was dropped as non-finite and the rest fit indexed an empty
+/// span list. Refused at the boundary as beyond any machine; inside, the line has no length and no spans.
+#[test]
+fn a_move_into_the_singular_band_with_a_huge_z_is_refused() {
+    let m = example("scara");
+    let z = "1".to_string() + &"0".repeat(199);
+    let z: f64 = z.parse().expect("a number");
+    for start in [[0.0, 150.0, 1.0], [20.0, 130.0, 1.0], [0.0, 199.0, 1.0]] {
+        for end in [[0.0, 200.0, z], [0.0, 199.9999, z], [0.0, 199.99, -z]] {
+            let (rc, _, reason) = check(&m, start, end, 150.0, 2000.0);
+            assert_eq!(rc, -1);
+            assert!(
+                reason.contains("mm is beyond any machine") && reason.starts_with("Z="),
+                "{reason}"
+            );
+            assert!(reason.len() < 40, "the value is written short: {reason}");
+            assert_eq!(waypoints(&m, start, end, 150.0, 2000.0, 0.0).0, -1);
+            // SAFETY: the machine lives while `m` does.
+            let machine = unsafe { &*m.0 };
+            let inside = without_panic("Machine::waypoints", || {
+                machine.waypoints(start, end, 150.0, 2000.0, 0.0)
+            });
+            assert_eq!(inside.len(), 1, "{inside:?}");
+        }
+    }
+    // The same move with a Z the machine has is an ordinary answer (it ends at rest in the band).
+    let (rc, caps, reason) = check(&m, [0.0, 150.0, 1.0], [0.0, 199.99, 5.0], 150.0, 2000.0);
+    assert_eq!(rc, 3, "{reason}");
+    assert!(caps[0] > 0.0 && caps[1] > 0.0, "{caps:?}");
+}
+
+/// Klipper divides by the caps (`move.limit_speed`): a move whose limits would allow it no speed — one that stays
+/// within rounding of the straight arm, where the joints cannot be evaluated — is refused with the reason instead of
+/// capped at 0 mm/s (a ZeroDivisionError in Klipper's toolhead); a legal move into the band keeps a positive cap.
+#[test]
+fn caps_are_positive_or_the_move_is_refused() {
+    let m = example("scara");
+    let pose = [0.0, 200.0, 1.0];
+    for end in [[0.0, 200.0, 1.0 + 1e-10], [1e-10, 200.0, 1.0]] {
+        let (rc, caps, reason) = check(&m, pose, end, 150.0, 2000.0);
+        assert_eq!(rc, -1, "{caps:?}");
+        assert!(reason.contains("allow no speed"), "{reason}");
+    }
+    for length in [1e-12, 1e-9, 1e-6, 1e-3, 1.0, 50.0] {
+        let start = [0.0, 199.99 - length, 1.0];
+        let verdict = check(&m, start, [0.0, 199.99, 1.0], 150.0, 2000.0);
+        assert_clean_check(
+            &format!("{length} mm into the band"),
+            &verdict,
+            150.0,
+            2000.0,
+        );
+        assert_eq!(verdict.0, 3, "{length}: {}", verdict.2);
+    }
 }

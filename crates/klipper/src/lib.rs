@@ -86,18 +86,8 @@ fn panic_text(payload: &(dyn Any + Send)) -> &str {
 /// [`MAX_COORDINATE`], a speed or acceleration that is not finite (≤ 0 is allowed: `check_move` then checks the
 /// segment only).
 pub fn usable_move(start: [f64; 3], end: [f64; 3], speed: f64, accel: f64) -> Result<(), String> {
-    for (axis, v) in ["X", "Y", "Z"]
-        .iter()
-        .zip(start)
-        .chain(["X", "Y", "Z"].iter().zip(end))
-    {
-        if !v.is_finite() {
-            return Err(format!("{axis}={v} is not a finite coordinate"));
-        }
-        if v.abs() > MAX_COORDINATE {
-            return Err(format!("{axis}={v:e} mm is beyond any machine"));
-        }
-    }
+    usable_point(start)?;
+    usable_point(end)?;
     for (name, v) in [("speed", speed), ("accel", accel)] {
         if !v.is_finite() {
             return Err(format!("{name}={v} is not a finite number"));
@@ -123,6 +113,19 @@ fn positive_caps(verdict: MoveVerdict, speed: f64, accel: f64) -> Result<MoveVer
         )),
         _ => Ok(verdict),
     }
+}
+
+/// The reason a point cannot be on any machine: a coordinate that is not finite or is beyond [`MAX_COORDINATE`].
+pub fn usable_point(p: [f64; 3]) -> Result<(), String> {
+    for (axis, v) in ["X", "Y", "Z"].into_iter().zip(p) {
+        if !v.is_finite() {
+            return Err(format!("{axis}={v} is not a finite coordinate"));
+        }
+        if v.abs() > MAX_COORDINATE {
+            return Err(format!("{axis}={v:e} mm is beyond any machine"));
+        }
+    }
+    Ok(())
 }
 
 /// Writes `message` into the caller's buffer (truncated, always NUL-terminated).
@@ -318,7 +321,8 @@ pub unsafe extern "C" fn jointspace_polar_radius(
     })
 }
 
-/// Toolhead position `xyz[3]` of motor positions `motors[motor_count]`. 0, or −1 with the reason.
+/// Toolhead position `xyz[3]` of motor positions `motors[motor_count]`. 0, or −1 with the reason (also when the position
+/// would not be finite).
 ///
 /// # Safety
 /// `motors` holds the machine's motor count of doubles, `xyz` three; `error` holds `error_len` bytes or is null.
@@ -336,6 +340,14 @@ pub unsafe extern "C" fn jointspace_forward(
         // SAFETY: per the contract, n doubles.
         let motors = unsafe { std::slice::from_raw_parts(motors, n) };
         match m.kinematics().forward(motors) {
+            Ok(p) if p.iter().any(|v| !v.is_finite()) => {
+                write_message(
+                    &format!("no finite position for motors at {motors:?}"),
+                    error,
+                    error_len,
+                );
+                -1
+            }
             Ok(p) => {
                 // SAFETY: xyz holds three doubles.
                 unsafe { ptr::copy_nonoverlapping(p.as_ptr(), xyz, 3) };
@@ -350,7 +362,7 @@ pub unsafe extern "C" fn jointspace_forward(
 }
 
 /// Motor positions `motors[motor_count]` of toolhead position `xyz[3]`, angles nearest `previous` (may be null).
-/// 0, or −1 with the reason.
+/// 0, or −1 with the reason (a coordinate that is not finite or beyond [`MAX_COORDINATE`] among them).
 ///
 /// # Safety
 /// `xyz` holds three doubles, `previous` (if not null) and `motors` the motor count; `error` as above.
@@ -368,6 +380,10 @@ pub unsafe extern "C" fn jointspace_inverse(
         let n = m.motor_names().len();
         // SAFETY: per the contract.
         let (p, out) = unsafe { (read3(xyz), std::slice::from_raw_parts_mut(motors, n)) };
+        if let Err(e) = usable_point(p) {
+            write_message(&e, error, error_len);
+            return -1;
+        }
         let result = if previous.is_null() {
             m.kinematics().inverse(p, out)
         } else {
@@ -376,7 +392,15 @@ pub unsafe extern "C" fn jointspace_inverse(
             m.kinematics().inverse_near(p, previous, out)
         };
         match result {
-            Ok(()) => 0,
+            Ok(()) if out.iter().all(|v| v.is_finite()) => 0,
+            Ok(()) => {
+                write_message(
+                    &format!("no finite motor position for {p:?}"),
+                    error,
+                    error_len,
+                );
+                -1
+            }
             Err(e) => {
                 write_message(&e.to_string(), error, error_len);
                 -1

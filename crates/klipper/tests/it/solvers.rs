@@ -8,8 +8,9 @@ use std::ffi::{CStr, CString, c_char};
 use jointspace_klipper::abi::{Move, StepperKinematics};
 use jointspace_klipper::machine::Machine;
 use jointspace_klipper::{
-    jointspace_check_move, jointspace_forward, jointspace_machine_free, jointspace_machine_new,
-    jointspace_move_waypoints, jointspace_stepper_alloc,
+    jointspace_check_move, jointspace_forward, jointspace_inverse, jointspace_junction_speed,
+    jointspace_machine_free, jointspace_machine_new, jointspace_move_waypoints,
+    jointspace_reach_margin, jointspace_stepper_alloc,
 };
 use proptest::prelude::*;
 
@@ -572,6 +573,12 @@ fn caps_are_positive_or_the_move_is_refused() {
         assert_eq!(rc, -1, "{caps:?}");
         assert!(reason.contains("allow no speed"), "{reason}");
     }
+    // A G-code move to the exact straight arm (`G1 X0 Y200`) ends at rest there, cruising at a positive speed.
+    for start in [[0.0, 150.0, 1.0], [20.0, 130.0, 1.0], [0.0, 199.999, 1.0]] {
+        let verdict = check(&m, start, pose, 150.0, 2000.0);
+        assert_clean_check(&format!("{start:?} to the straight arm"), &verdict, 150.0, 2000.0);
+        assert_eq!(verdict.0 & 2, 2, "{start:?}: {}", verdict.2);
+    }
     for length in [1e-12, 1e-9, 1e-6, 1e-3, 1.0, 50.0] {
         let start = [0.0, 199.99 - length, 1.0];
         let verdict = check(&m, start, [0.0, 199.99, 1.0], 150.0, 2000.0);
@@ -582,5 +589,212 @@ fn caps_are_positive_or_the_move_is_refused() {
             2000.0,
         );
         assert_eq!(verdict.0, 3, "{length}: {}", verdict.2);
+    }
+}
+
+/// The two example machines, built once and shared by every case (a machine is immutable, its answers reentrant);
+/// never freed, they live as long as the test binary.
+fn shared_examples() -> [&'static Owned; 2] {
+    static MACHINES: std::sync::OnceLock<[usize; 2]> = std::sync::OnceLock::new();
+    let addresses = MACHINES.get_or_init(|| {
+        ["polar", "scara"].map(|name| Box::into_raw(Box::new(example(name))) as usize)
+    });
+    // SAFETY: boxes leaked above, never freed or written.
+    addresses.map(|a| unsafe { &*(a as *const Owned) })
+}
+
+// SAFETY (for the shared machines): `Owned` holds a pointer to an immutable `Machine`, whose answers take `&self`.
+unsafe impl Sync for Owned {}
+unsafe impl Send for Owned {}
+
+/// A number a G-code line or a host may hand over that no machine can use, or only just.
+fn wild() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(f64::NEG_INFINITY),
+        Just(0.0),
+        Just(-0.0),
+        Just(f64::MAX),
+        Just(f64::MIN_POSITIVE),
+        Just(5e-324),
+        Just(1e9),
+        Just(-1e9 - 1.0),
+        (-320.0..308.0f64).prop_map(|e| 10f64.powf(e)),
+        (-320.0..308.0f64).prop_map(|e| -(10f64.powf(e))),
+    ]
+}
+
+/// Distances from a special pose (mm) where rounding and tolerances meet.
+const NEAR: [f64; 6] = [0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-3];
+
+/// A point near one of the machine's special poses: the polar centre; the SCARA's straight arm (full reach) or
+/// folded arm (its shoulder, with equal links), at `NEAR` distances inside or beside them.
+fn near_pose(scara: bool, which: usize, angle: f64, near: usize, beside: f64, z: f64) -> [f64; 3] {
+    let d = NEAR[near % NEAR.len()];
+    let (c, s) = (angle.cos(), angle.sin());
+    let r = if scara && which.is_multiple_of(2) {
+        200.0 - d
+    } else {
+        d
+    };
+    [r * c - beside * s * d, r * s + beside * c * d, z]
+}
+
+/// The move's end: along a direction by a length from 1e-12 to 1e3 mm, to another special point, or wild.
+#[derive(Debug, Clone)]
+enum EndKind {
+    Along {
+        log_length: f64,
+        azimuth: f64,
+        elevation: f64,
+    },
+    Pose {
+        which: usize,
+        angle: f64,
+        near: usize,
+    },
+    Wild([f64; 3]),
+}
+
+fn end_kind() -> impl Strategy<Value = EndKind> {
+    prop_oneof![
+        4 => (-12.0..3.0f64, -PI..PI, prop_oneof![Just(0.0), Just(PI / 2.0), -PI / 2.0..PI / 2.0])
+            .prop_map(|(log_length, azimuth, elevation)| EndKind::Along { log_length, azimuth, elevation }),
+        2 => (0..2usize, -PI..PI, 0..6usize).prop_map(|(which, angle, near)| EndKind::Pose { which, angle, near }),
+        1 => prop::array::uniform3(prop_oneof![wild(), -300.0..300.0f64]).prop_map(EndKind::Wild),
+    ]
+}
+
+fn end_of(kind: &EndKind, scara: bool, start: [f64; 3]) -> [f64; 3] {
+    match *kind {
+        EndKind::Along {
+            log_length,
+            azimuth,
+            elevation,
+        } => {
+            let length = 10f64.powf(log_length);
+            let dir = [
+                elevation.cos() * azimuth.cos(),
+                elevation.cos() * azimuth.sin(),
+                elevation.sin(),
+            ];
+            [0, 1, 2].map(|k| start[k] + length * dir[k])
+        }
+        EndKind::Pose { which, angle, near } => near_pose(scara, which, angle, near, 0.0, start[2]),
+        EndKind::Wild(p) => p,
+    }
+}
+
+/// Every answer is finite or a clean refusal: `inverse` gives finite motors or −1 with a reason, `forward` of them
+/// a finite point, `reach_margin` a finite margin or −1.
+fn assert_pose_answers(m: &Owned, p: [f64; 3], previous: [f64; 3], what: &str) {
+    let mut motors = [0.0; 3];
+    let mut xyz = [0.0; 3];
+    let mut margin = 0.0;
+    let mut error = [0 as c_char; 256];
+    for previous in [std::ptr::null(), previous.as_ptr()] {
+        let rc = without_panic("inverse", || {
+            // SAFETY: three coordinates, three motors (the examples have three), a 256-byte buffer.
+            unsafe {
+                jointspace_inverse(
+                    m.0,
+                    p.as_ptr(),
+                    previous,
+                    motors.as_mut_ptr(),
+                    error.as_mut_ptr(),
+                    error.len(),
+                )
+            }
+        });
+        match rc {
+            0 => assert!(
+                motors.iter().all(|v| v.is_finite()),
+                "{what}: inverse {motors:?}"
+            ),
+            -1 => assert!(
+                !reason(&error).is_empty(),
+                "{what}: inverse refused without a reason"
+            ),
+            _ => panic!("{what}: inverse returned {rc}"),
+        }
+        let rc = without_panic("forward", || {
+            // SAFETY: three motors, three coordinates, a 256-byte buffer.
+            unsafe {
+                jointspace_forward(
+                    m.0,
+                    previous_or(previous, &motors),
+                    xyz.as_mut_ptr(),
+                    error.as_mut_ptr(),
+                    error.len(),
+                )
+            }
+        });
+        match rc {
+            0 => assert!(xyz.iter().all(|v| v.is_finite()), "{what}: forward {xyz:?}"),
+            -1 => assert!(
+                !reason(&error).is_empty(),
+                "{what}: forward refused without a reason"
+            ),
+            _ => panic!("{what}: forward returned {rc}"),
+        }
+    }
+    let rc = without_panic("reach_margin", || {
+        // SAFETY: one double.
+        unsafe { jointspace_reach_margin(m.0, p[0], p[1], p[2], &mut margin) }
+    });
+    assert!(
+        rc == -1 || (rc == 0 && margin.is_finite()),
+        "{what}: reach_margin {rc} {margin}"
+    );
+}
+
+/// The motors `forward` reads: the wild `previous` when given, else what `inverse` wrote.
+fn previous_or(previous: *const f64, motors: &[f64; 3]) -> *const f64 {
+    if previous.is_null() {
+        motors.as_ptr()
+    } else {
+        previous
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+    /// Whatever move a G-code line asks for near the poses where the geometry degenerates (the polar centre, the
+    /// SCARA's straight and folded arm), at lengths from 1e-12 to 1e3 mm, or with huge, tiny and non-finite
+    /// numbers: no panic (caught or not), and every answer finite or a clean −1 with a reason.
+    #[test]
+    fn the_c_interface_answers_every_move_near_the_special_poses(
+        scara in any::<bool>(),
+        start_kind in 0..4usize,
+        (which, angle, near, beside) in (0..2usize, -PI..PI, 0..6usize, -1.0..1.0f64),
+        z in prop_oneof![Just(1.0), 0.0..200.0f64, wild()],
+        wild_start in prop::array::uniform3(wild()),
+        end in end_kind(),
+        corner in end_kind(),
+        speed in prop_oneof![Just(150.0), 1e-6..1e4f64, Just(0.0), -10.0..0.0f64, wild()],
+        accel in prop_oneof![Just(2000.0), 1e-6..1e6f64, Just(0.0), wild()],
+        bed_angle in prop_oneof![-10.0..10.0f64, wild()],
+        previous in prop::array::uniform3(prop_oneof![-7.0..7.0f64, wild()]),
+    ) {
+        let m = shared_examples()[usize::from(scara)];
+        let start = match start_kind {
+            0 | 1 => near_pose(scara, which, angle, near, beside, z),
+            2 => wild_start,
+            _ => [200.0 * beside, 200.0 * angle.sin(), z],
+        };
+        let end = end_of(&end, scara, start);
+        let what = format!("{} {start:?} -> {end:?} at {speed}, {accel}", if scara { "scara" } else { "polar" });
+        assert_clean_check(&what, &check(m, start, end, speed, accel), speed, accel);
+        assert_clean_waypoints(&what, &waypoints(m, start, end, speed, accel, bed_angle));
+        let next = end_of(&corner, scara, end);
+        let points = [start, end, next].concat();
+        let v = without_panic("junction_speed", || {
+            // SAFETY: nine doubles.
+            unsafe { jointspace_junction_speed(m.0, points.as_ptr(), accel, accel) }
+        });
+        prop_assert!(v >= 0.0, "{what}: junction {v}");
+        assert_pose_answers(m, end, previous, &what);
+        assert_pose_answers(m, start, previous, &what);
     }
 }

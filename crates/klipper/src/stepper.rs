@@ -185,11 +185,18 @@ unsafe extern "C" fn calc_position(
     // JointspaceStepper) and a live move; it writes neither while the callback runs on this stepper.
     let (stepper, m) = unsafe { (&*sk.cast::<JointspaceStepper>(), &*m) };
     let commanded = stepper.sk.commanded_pos;
-    // A panic must not unwind into Klipper's C code: the motor then stays where it was commanded.
+    // A panic must not unwind into Klipper's C code, and Klipper must never read NaN: the motor then stays where it
+    // was commanded. (A non-finite move reached NaN through `radial_side_angle`, whose `distance2 >= NEAR²` test
+    // is false for NaN; found by the `klipper_abi` fuzz target.)
     crate::guarded(commanded, crate::NO_BUFFER, || {
-        stepper
+        let position = stepper
             .solver
-            .position(m, move_time, commanded, stepper.fused)
+            .position(m, move_time, commanded, stepper.fused);
+        if position.is_finite() {
+            position
+        } else {
+            commanded
+        }
     })
 }
 

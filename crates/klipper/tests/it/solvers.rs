@@ -576,7 +576,12 @@ fn caps_are_positive_or_the_move_is_refused() {
     // A G-code move to the exact straight arm (`G1 X0 Y200`) ends at rest there, cruising at a positive speed.
     for start in [[0.0, 150.0, 1.0], [20.0, 130.0, 1.0], [0.0, 199.999, 1.0]] {
         let verdict = check(&m, start, pose, 150.0, 2000.0);
-        assert_clean_check(&format!("{start:?} to the straight arm"), &verdict, 150.0, 2000.0);
+        assert_clean_check(
+            &format!("{start:?} to the straight arm"),
+            &verdict,
+            150.0,
+            2000.0,
+        );
         assert_eq!(verdict.0 & 2, 2, "{start:?}: {}", verdict.2);
     }
     for length in [1e-12, 1e-9, 1e-6, 1e-3, 1.0, 50.0] {
@@ -796,5 +801,27 @@ proptest! {
         prop_assert!(v >= 0.0, "{what}: junction {v}");
         assert_pose_answers(m, end, previous, &what);
         assert_pose_answers(m, start, previous, &what);
+    }
+}
+
+/// Found by the `klipper_abi` fuzz target: a move with a non-finite start and direction (an infinite Y, a NaN time)
+/// took the ideal polar bed's solver through its near-centre branch (`distance² >= NEAR²` is false for NaN) to NaN.
+/// The callback now holds the commanded reading for anything that is not a finite position.
+#[test]
+fn a_non_finite_move_leaves_every_motor_where_it_was_commanded() {
+    let m = example("polar");
+    let mv = Move {
+        print_time: 0.0,
+        move_t: f64::NAN,
+        start_v: 0.0,
+        half_accel: f64::NAN,
+        start_pos: [-374.4, f64::INFINITY, 1.0],
+        axes_r: [0.0, f64::NAN, 0.0],
+    };
+    for motor in ["stepper_bed", "stepper_arm", "stepper_z"] {
+        let s = Stepper::new(m.0, motor);
+        for t in [f64::NAN, 0.0, 1.0] {
+            assert_eq!(s.on(&mv, t, 0.25), 0.25, "{motor} at {t}");
+        }
     }
 }

@@ -610,6 +610,7 @@ fn shared_examples() -> [&'static Owned; 2] {
 
 // SAFETY (for the shared machines): `Owned` holds a pointer to an immutable `Machine`, whose answers take `&self`.
 unsafe impl Sync for Owned {}
+// SAFETY: as above; the machine is freed only by the thread that drops the `Owned`, once.
 unsafe impl Send for Owned {}
 
 /// A number a G-code line or a host may hand over that no machine can use, or only just.

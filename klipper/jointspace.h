@@ -1,7 +1,9 @@
 /* libjointspace_klipper.so: jointspace's kinematics for Klipper and Kalico (C interface).
  * jointspace.py hands these declarations to cffi (lines starting with '#' are left out), so keep them to
  * plain declarations. struct stepper_kinematics is Klipper's (klippy/chelper/itersolve.h).
- * Functions returning int give 0 on success and a negative number on failure, with the reason in `error`. */
+ * Functions returning int give 0 on success and a negative number on failure, with the reason in `error`.
+ * No function unwinds into the caller (an internal error becomes the function's failure value), none returns NaN,
+ * and moves or points with a non-finite coordinate, or one beyond 1e9 mm, are refused with the value named. */
 #ifndef JOINTSPACE_H
 #define JOINTSPACE_H
 #include <stddef.h>

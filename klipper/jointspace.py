@@ -246,13 +246,17 @@ class Machine:
     def check_move(self, start, end, speed, accel):
         """(caps, ends_at_rest): caps None when nothing binds, (speed, accel) when the move must be slowed;
         ends_at_rest when the move ends at a pose the arm may only rest at. Raises ValueError with the reason when
-        the move cannot be made. speed <= 0 checks the segment only."""
+        the move cannot be made. speed <= 0 checks the segment only. Caps are positive and finite (Klipper's
+        move.limit_speed divides by them): the library refuses a move its limits would allow no speed, and a cap
+        that is not is refused here too."""
         rc = self.lib.jointspace_check_move(
             self.handle, start[0], start[1], start[2], end[0], end[1], end[2], speed, accel,
             self._limits, self._error, ERROR_LEN)
         if rc < 0:
             raise ValueError(self._reason())
         caps = (self._limits[0], self._limits[1]) if rc & 1 else None
+        if caps is not None and not all(0. < c < float("inf") for c in caps):
+            raise ValueError("the motor limits allow no speed along this move (caps %r)" % (caps,))
         return caps, bool(rc & 2)
 
     def junction_speed(self, prev_start, corner, prev_accel, next_end, next_accel):

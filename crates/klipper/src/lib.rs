@@ -8,8 +8,10 @@
 //!
 //! The C interface is declared in `klipper/jointspace.h`. Conventions: functions return 0 on success and a
 //! negative number on failure, with the reason written into a caller's buffer; nothing here panics across the
-//! boundary (an `extern "C"` function aborts rather than unwind, and the code is written not to panic), and no
-//! function returns NaN.
+//! boundary (an `extern "C"` function would abort the host rather than unwind: every entry point runs its work
+//! through [`guarded`], which turns a panic into the function's failure value), and no function returns NaN.
+//! Coordinates, speeds and accelerations are checked at the boundary ([`usable_move`]): a non-finite or absurd
+//! value is refused with its reason before any geometry sees it.
 
 // The C interface is this crate's whole job: `unsafe` is allowed here and nowhere else in the workspace, and every
 // block says why it is sound.
@@ -21,7 +23,9 @@ pub mod pieces;
 pub mod scan;
 pub mod stepper;
 
+use std::any::Any;
 use std::ffi::{CStr, c_char, c_int};
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::ptr;
 
 use abi::StepperKinematics;
@@ -38,6 +42,90 @@ const fn concat_c_version() -> &'static CStr {
         Ok(v) => v,
         Err(_) => c"jointspace-klipper",
     }
+}
+
+/// Coordinates beyond this magnitude (mm, a thousand kilometres) are refused at the boundary: no machine reaches
+/// them, and squared they leave nothing of a millimetre in an f64.
+pub const MAX_COORDINATE: f64 = 1e9;
+
+/// A caller's error buffer (pointer and length), or [`NO_BUFFER`].
+type ErrorBuffer = (*mut c_char, usize);
+pub(crate) const NO_BUFFER: ErrorBuffer = (ptr::null_mut(), 0);
+
+/// Runs an entry point's work so that a panic never crosses the C boundary (it would abort Klipper): on a panic,
+/// the reason goes into `error` (if there is one) and the function answers `failure`, its documented failure value.
+/// The success path costs nothing beyond the call (no allocation), so the per-step solver uses it too.
+pub(crate) fn guarded<T>(failure: T, error: ErrorBuffer, f: impl FnOnce() -> T) -> T {
+    // Unwind safety: the work only reads the immutable machine (or the solver's plain data) and writes the
+    // caller's buffers, which the failure value tells the caller not to read; nothing half-updated is used again.
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(value) => value,
+        Err(payload) => {
+            if !error.0.is_null() {
+                let reason = format!(
+                    "internal error in jointspace (please report it with the move or config): {}",
+                    panic_text(payload.as_ref())
+                );
+                write_message(&reason, error.0, error.1);
+            }
+            failure
+        }
+    }
+}
+
+/// The message a panic carried.
+fn panic_text(payload: &(dyn Any + Send)) -> &str {
+    payload
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("panic")
+}
+
+/// The reason a move's numbers cannot be a move on any machine: a coordinate that is not finite or is beyond
+/// [`MAX_COORDINATE`], a speed or acceleration that is not finite (≤ 0 is allowed: `check_move` then checks the
+/// segment only).
+pub fn usable_move(start: [f64; 3], end: [f64; 3], speed: f64, accel: f64) -> Result<(), String> {
+    usable_point(start)?;
+    usable_point(end)?;
+    for (name, v) in [("speed", speed), ("accel", accel)] {
+        if !v.is_finite() {
+            return Err(format!("{name}={v} is not a finite number"));
+        }
+    }
+    Ok(())
+}
+
+/// The verdict as Klipper may apply it: caps only for a move requested at a positive speed and acceleration (else
+/// the segment alone is checked), and then positive and finite — Klipper divides by them, so a move whose motor
+/// limits allow it no speed at all is refused, with the caps that say so.
+fn positive_caps(verdict: MoveVerdict, speed: f64, accel: f64) -> Result<MoveVerdict, String> {
+    if !(speed > 0.0 && accel > 0.0) {
+        return Ok(MoveVerdict {
+            caps: None,
+            ..verdict
+        });
+    }
+    match verdict.caps {
+        Some((v, a)) if !(v > 0.0 && v.is_finite() && a > 0.0 && a.is_finite()) => Err(format!(
+            "the motor limits allow no speed along this move (cap {v:e} mm/s, {a:e} mm/s²): it keeps within \
+             rounding of a pose the joints cannot be evaluated at"
+        )),
+        _ => Ok(verdict),
+    }
+}
+
+/// The reason a point cannot be on any machine: a coordinate that is not finite or is beyond [`MAX_COORDINATE`].
+pub fn usable_point(p: [f64; 3]) -> Result<(), String> {
+    for (axis, v) in ["X", "Y", "Z"].into_iter().zip(p) {
+        if !v.is_finite() {
+            return Err(format!("{axis}={v} is not a finite coordinate"));
+        }
+        if v.abs() > MAX_COORDINATE {
+            return Err(format!("{axis}={v:e} mm is beyond any machine"));
+        }
+    }
+    Ok(())
 }
 
 /// Writes `message` into the caller's buffer (truncated, always NUL-terminated).
@@ -72,7 +160,7 @@ fn machine<'a>(m: *const Machine) -> Option<&'a Machine> {
 /// The library version string (static).
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_version() -> *const c_char {
-    VERSION.as_ptr()
+    guarded(c"".as_ptr(), NO_BUFFER, || VERSION.as_ptr())
 }
 
 /// Layout of `struct stepper_kinematics` as this library was built for it: size, then the offsets of
@@ -83,17 +171,19 @@ pub extern "C" fn jointspace_version() -> *const c_char {
 /// `out` points to at least five `size_t`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn jointspace_stepper_kinematics_layout(out: *mut usize) {
-    let layout = [
-        std::mem::size_of::<StepperKinematics>(),
-        std::mem::offset_of!(StepperKinematics, commanded_pos),
-        std::mem::offset_of!(StepperKinematics, active_flags),
-        std::mem::offset_of!(StepperKinematics, calc_position_cb),
-        std::mem::offset_of!(StepperKinematics, post_cb),
-    ];
-    for (i, v) in layout.into_iter().enumerate() {
-        // SAFETY: per the contract, out has five slots.
-        unsafe { *out.add(i) = v };
-    }
+    guarded((), NO_BUFFER, || {
+        let layout = [
+            std::mem::size_of::<StepperKinematics>(),
+            std::mem::offset_of!(StepperKinematics, commanded_pos),
+            std::mem::offset_of!(StepperKinematics, active_flags),
+            std::mem::offset_of!(StepperKinematics, calc_position_cb),
+            std::mem::offset_of!(StepperKinematics, post_cb),
+        ];
+        for (i, v) in layout.into_iter().enumerate() {
+            // SAFETY: per the contract, out has five slots.
+            unsafe { *out.add(i) = v };
+        }
+    })
 }
 
 /// Builds a machine from printer.cfg text (its `[printer]` and stepper sections) whose solvers compute positions
@@ -109,19 +199,21 @@ pub unsafe extern "C" fn jointspace_machine_new(
     error: *mut c_char,
     error_len: usize,
 ) -> *mut Machine {
-    if config_text.is_null() {
-        write_message("no config text", error, error_len);
-        return ptr::null_mut();
-    }
-    // SAFETY: per the contract, a NUL-terminated string.
-    let text = unsafe { CStr::from_ptr(config_text) }.to_string_lossy();
-    match Machine::from_config_text(&text, fused_arithmetic != 0) {
-        Ok(m) => Box::into_raw(Box::new(m)),
-        Err(e) => {
-            write_message(&e, error, error_len);
-            ptr::null_mut()
+    guarded(ptr::null_mut(), (error, error_len), || {
+        if config_text.is_null() {
+            write_message("no config text", error, error_len);
+            return ptr::null_mut();
         }
-    }
+        // SAFETY: per the contract, a NUL-terminated string.
+        let text = unsafe { CStr::from_ptr(config_text) }.to_string_lossy();
+        match Machine::from_config_text(&text, fused_arithmetic != 0) {
+            Ok(m) => Box::into_raw(Box::new(m)),
+            Err(e) => {
+                write_message(&e, error, error_len);
+                ptr::null_mut()
+            }
+        }
+    })
 }
 
 /// Frees a machine (null is ignored).
@@ -130,30 +222,38 @@ pub unsafe extern "C" fn jointspace_machine_new(
 /// `m` comes from `jointspace_machine_new` and is not used afterwards.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn jointspace_machine_free(m: *mut Machine) {
-    if !m.is_null() {
-        // SAFETY: per the contract, the box made by jointspace_machine_new, freed once.
-        drop(unsafe { Box::from_raw(m) });
-    }
+    guarded((), NO_BUFFER, || {
+        if !m.is_null() {
+            // SAFETY: per the contract, the box made by jointspace_machine_new, freed once.
+            drop(unsafe { Box::from_raw(m) });
+        }
+    })
 }
 
 /// `section key` lines of every config key the machine read (valid while the machine lives).
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_machine_read_keys(m: *const Machine) -> *const c_char {
-    machine(m).map_or(c"".as_ptr(), |m| m.read_keys().as_ptr())
+    guarded(c"".as_ptr(), NO_BUFFER, || {
+        machine(m).map_or(c"".as_ptr(), |m| m.read_keys().as_ptr())
+    })
 }
 
 /// Number of motors of the machine (the order of every motor array below).
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_motor_count(m: *const Machine) -> c_int {
-    machine(m).map_or(0, |m| m.motor_names().len() as c_int)
+    guarded(0, NO_BUFFER, || {
+        machine(m).map_or(0, |m| m.motor_names().len() as c_int)
+    })
 }
 
 /// The config section of motor `index` (valid while the machine lives), or null.
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_motor_name(m: *const Machine, index: c_int) -> *const c_char {
-    machine(m)
-        .and_then(|m| m.motor_names().get(usize::try_from(index).ok()?))
-        .map_or(ptr::null(), |n| n.as_ptr())
+    guarded(ptr::null(), NO_BUFFER, || {
+        machine(m)
+            .and_then(|m| m.motor_names().get(usize::try_from(index).ok()?))
+            .map_or(ptr::null(), |n| n.as_ptr())
+    })
 }
 
 /// Allocates the step-time solver of the stepper configured in section `name` (libc memory: Klipper frees it
@@ -166,15 +266,17 @@ pub unsafe extern "C" fn jointspace_stepper_alloc(
     m: *const Machine,
     name: *const c_char,
 ) -> *mut StepperKinematics {
-    if name.is_null() {
-        return ptr::null_mut();
-    }
-    // SAFETY: per the contract.
-    let name = unsafe { CStr::from_ptr(name) }.to_string_lossy();
-    match machine(m).and_then(|m| m.solver(&name)) {
-        Some(solver) => allocate(solver, machine(m).is_some_and(Machine::fused)),
-        None => ptr::null_mut(),
-    }
+    guarded(ptr::null_mut(), NO_BUFFER, || {
+        if name.is_null() {
+            return ptr::null_mut();
+        }
+        // SAFETY: per the contract.
+        let name = unsafe { CStr::from_ptr(name) }.to_string_lossy();
+        match machine(m).and_then(|m| m.solver(&name)) {
+            Some(solver) => allocate(solver, machine(m).is_some_and(Machine::fused)),
+            None => ptr::null_mut(),
+        }
+    })
 }
 
 /// Allocates a solver whose position is `cx·x + cy·y + cz·z` of the toolhead position: the joint-space homing
@@ -186,18 +288,21 @@ pub extern "C" fn jointspace_linear_stepper_alloc(
     cz: f64,
     fused_arithmetic: c_int,
 ) -> *mut StepperKinematics {
-    if ![cx, cy, cz].iter().all(|c| c.is_finite()) {
-        return ptr::null_mut();
-    }
-    let solver = Solver::Linear {
-        coeffs: [cx, cy, cz],
-    };
-    allocate(solver, fused_arithmetic != 0)
+    guarded(ptr::null_mut(), NO_BUFFER, || {
+        if ![cx, cy, cz].iter().all(|c| c.is_finite()) {
+            return ptr::null_mut();
+        }
+        let solver = Solver::Linear {
+            coeffs: [cx, cy, cz],
+        };
+        allocate(solver, fused_arithmetic != 0)
+    })
 }
 
 /// The ideal polar arm's position at `move_time` into `m` (`√(x² + y²)`), in plain or fused arithmetic. The
 /// Python side compares it with the host's own polar solver on sample moves to learn which arithmetic the host's
-/// C helper was compiled with, so every solver here reproduces the host's positions to the bit.
+/// C helper was compiled with, so every solver here reproduces the host's positions to the bit. 0 for a null move
+/// (or if the computation failed).
 ///
 /// # Safety
 /// `m` points to a `struct move` (its first ten doubles are read).
@@ -207,12 +312,17 @@ pub unsafe extern "C" fn jointspace_polar_radius(
     move_time: f64,
     fused_arithmetic: c_int,
 ) -> f64 {
-    // SAFETY: per the contract.
-    let m = unsafe { &*m };
-    Solver::PolarRadius.position(m, move_time, 0.0, fused_arithmetic != 0)
+    guarded(0.0, NO_BUFFER, || {
+        // SAFETY: per the contract (null is refused).
+        let Some(m) = (unsafe { m.as_ref() }) else {
+            return 0.0;
+        };
+        Solver::PolarRadius.position(m, move_time, 0.0, fused_arithmetic != 0)
+    })
 }
 
-/// Toolhead position `xyz[3]` of motor positions `motors[motor_count]`. 0, or −1 with the reason.
+/// Toolhead position `xyz[3]` of motor positions `motors[motor_count]`. 0, or −1 with the reason (also when the position
+/// would not be finite).
 ///
 /// # Safety
 /// `motors` holds the machine's motor count of doubles, `xyz` three; `error` holds `error_len` bytes or is null.
@@ -224,25 +334,35 @@ pub unsafe extern "C" fn jointspace_forward(
     error: *mut c_char,
     error_len: usize,
 ) -> c_int {
-    let Some(m) = machine(m) else { return -1 };
-    let n = m.motor_names().len();
-    // SAFETY: per the contract, n doubles.
-    let motors = unsafe { std::slice::from_raw_parts(motors, n) };
-    match m.kinematics().forward(motors) {
-        Ok(p) => {
-            // SAFETY: xyz holds three doubles.
-            unsafe { ptr::copy_nonoverlapping(p.as_ptr(), xyz, 3) };
-            0
+    guarded(-1, (error, error_len), || {
+        let Some(m) = machine(m) else { return -1 };
+        let n = m.motor_names().len();
+        // SAFETY: per the contract, n doubles.
+        let motors = unsafe { std::slice::from_raw_parts(motors, n) };
+        match m.kinematics().forward(motors) {
+            Ok(p) if p.iter().any(|v| !v.is_finite()) => {
+                write_message(
+                    &format!("no finite position for motors at {motors:?}"),
+                    error,
+                    error_len,
+                );
+                -1
+            }
+            Ok(p) => {
+                // SAFETY: xyz holds three doubles.
+                unsafe { ptr::copy_nonoverlapping(p.as_ptr(), xyz, 3) };
+                0
+            }
+            Err(e) => {
+                write_message(&e.to_string(), error, error_len);
+                -1
+            }
         }
-        Err(e) => {
-            write_message(&e.to_string(), error, error_len);
-            -1
-        }
-    }
+    })
 }
 
 /// Motor positions `motors[motor_count]` of toolhead position `xyz[3]`, angles nearest `previous` (may be null).
-/// 0, or −1 with the reason.
+/// 0, or −1 with the reason (a coordinate that is not finite or beyond [`MAX_COORDINATE`] among them).
 ///
 /// # Safety
 /// `xyz` holds three doubles, `previous` (if not null) and `motors` the motor count; `error` as above.
@@ -255,31 +375,47 @@ pub unsafe extern "C" fn jointspace_inverse(
     error: *mut c_char,
     error_len: usize,
 ) -> c_int {
-    let Some(m) = machine(m) else { return -1 };
-    let n = m.motor_names().len();
-    // SAFETY: per the contract.
-    let (p, out) = unsafe { (read3(xyz), std::slice::from_raw_parts_mut(motors, n)) };
-    let result = if previous.is_null() {
-        m.kinematics().inverse(p, out)
-    } else {
-        // SAFETY: per the contract, n doubles.
-        let previous = unsafe { std::slice::from_raw_parts(previous, n) };
-        m.kinematics().inverse_near(p, previous, out)
-    };
-    match result {
-        Ok(()) => 0,
-        Err(e) => {
-            write_message(&e.to_string(), error, error_len);
-            -1
+    guarded(-1, (error, error_len), || {
+        let Some(m) = machine(m) else { return -1 };
+        let n = m.motor_names().len();
+        // SAFETY: per the contract.
+        let (p, out) = unsafe { (read3(xyz), std::slice::from_raw_parts_mut(motors, n)) };
+        if let Err(e) = usable_point(p) {
+            write_message(&e, error, error_len);
+            return -1;
         }
-    }
+        let result = if previous.is_null() {
+            m.kinematics().inverse(p, out)
+        } else {
+            // SAFETY: per the contract, n doubles.
+            let previous = unsafe { std::slice::from_raw_parts(previous, n) };
+            m.kinematics().inverse_near(p, previous, out)
+        };
+        match result {
+            Ok(()) if out.iter().all(|v| v.is_finite()) => 0,
+            Ok(()) => {
+                write_message(
+                    &format!("no finite motor position for {p:?}"),
+                    error,
+                    error_len,
+                );
+                -1
+            }
+            Err(e) => {
+                write_message(&e.to_string(), error, error_len);
+                -1
+            }
+        }
+    })
 }
 
 /// Checks the straight move `start → end` requested at `speed` (mm/s) and `accel` (mm/s²): the whole segment
 /// against reach, the polar centre, singular poses and joint limits, and the motor limits (bed angular speed and
 /// acceleration, joint speeds, step rates) over its whole length. Returns −1 when it cannot be made (the reason in
 /// `error`), else flags: 1 when the move must be slowed (`limits[0]` cruise speed, `limits[1]` acceleration), 2 when
-/// it ends at a pose the arm may only rest at (it must end at rest).
+/// it ends at a pose the arm may only rest at (it must end at rest). A coordinate that is not finite or beyond
+/// [`MAX_COORDINATE`], or a speed or acceleration that is not finite, is refused (speed or acceleration ≤ 0 checks
+/// the segment only). Caps are always positive and finite: a move its motor limits would allow no speed is refused.
 ///
 /// # Safety
 /// `limits` holds two doubles; `error` holds `error_len` bytes or is null.
@@ -299,29 +435,29 @@ pub unsafe extern "C" fn jointspace_check_move(
     error: *mut c_char,
     error_len: usize,
 ) -> c_int {
-    let Some(m) = machine(m) else { return -1 };
-    let verdict = m.check_move(
-        [start_x, start_y, start_z],
-        [end_x, end_y, end_z],
-        speed,
-        accel,
-    );
-    match verdict {
-        Ok(MoveVerdict { caps, ends_at_rest }) => {
-            if let Some((speed, accel)) = caps {
-                // SAFETY: limits holds two doubles.
-                unsafe {
-                    *limits = speed;
-                    *limits.add(1) = accel;
+    guarded(-1, (error, error_len), || {
+        let Some(m) = machine(m) else { return -1 };
+        let (start, end) = ([start_x, start_y, start_z], [end_x, end_y, end_z]);
+        let verdict = usable_move(start, end, speed, accel)
+            .and_then(|()| m.check_move(start, end, speed, accel))
+            .and_then(|v| positive_caps(v, speed, accel));
+        match verdict {
+            Ok(MoveVerdict { caps, ends_at_rest }) => {
+                if let Some((speed, accel)) = caps {
+                    // SAFETY: limits holds two doubles.
+                    unsafe {
+                        *limits = speed;
+                        *limits.add(1) = accel;
+                    }
                 }
+                c_int::from(caps.is_some()) | (c_int::from(ends_at_rest) << 1)
             }
-            c_int::from(caps.is_some()) | (c_int::from(ends_at_rest) << 1)
+            Err(e) => {
+                write_message(&e, error, error_len);
+                -1
+            }
         }
-        Err(e) => {
-            write_message(&e, error, error_len);
-            -1
-        }
-    }
+    })
 }
 
 /// The highest speed (mm/s) at the corner between the move `points[0..3] → points[3..6]`, planned with
@@ -337,21 +473,25 @@ pub unsafe extern "C" fn jointspace_junction_speed(
     prev_accel: f64,
     next_accel: f64,
 ) -> f64 {
-    let Some(m) = machine(m) else {
-        return f64::INFINITY;
-    };
-    // SAFETY: points holds nine doubles.
-    let p = unsafe { std::slice::from_raw_parts(points, 9) };
-    let point = |i: usize| [p[3 * i], p[3 * i + 1], p[3 * i + 2]];
-    let speed = m.junction_speed([point(0), point(1), point(2)], [prev_accel, next_accel]);
-    // NaN from non-finite input caps nothing (the moves themselves are checked elsewhere).
-    if speed.is_nan() { f64::INFINITY } else { speed }
+    guarded(f64::INFINITY, NO_BUFFER, || {
+        let Some(m) = machine(m) else {
+            return f64::INFINITY;
+        };
+        // SAFETY: points holds nine doubles.
+        let p = unsafe { std::slice::from_raw_parts(points, 9) };
+        let point = |i: usize| [p[3 * i], p[3 * i + 1], p[3 * i + 2]];
+        let speed = m.junction_speed([point(0), point(1), point(2)], [prev_accel, next_accel]);
+        // NaN from non-finite input caps nothing (the moves themselves are checked elsewhere).
+        if speed.is_nan() { f64::INFINITY } else { speed }
+    })
 }
 
 /// 1 when corners need capping (some motor has an acceleration limit: ask [`jointspace_junction_speed`]), else 0.
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_caps_corners(m: *const Machine) -> c_int {
-    c_int::from(machine(m).is_some_and(Machine::caps_corners))
+    guarded(0, NO_BUFFER, || {
+        c_int::from(machine(m).is_some_and(Machine::caps_corners))
+    })
 }
 
 /// The pose the config declares for homing (FEKT-SCARA's `home_position`) into `xyz[3]`: 0, or −1 if none.
@@ -360,14 +500,16 @@ pub extern "C" fn jointspace_caps_corners(m: *const Machine) -> c_int {
 /// `xyz` holds three doubles.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn jointspace_declared_home(m: *const Machine, xyz: *mut f64) -> c_int {
-    match machine(m).and_then(Machine::declared_home) {
-        Some(p) => {
-            // SAFETY: xyz holds three doubles.
-            unsafe { ptr::copy_nonoverlapping(p.as_ptr(), xyz, 3) };
-            0
+    guarded(-1, NO_BUFFER, || {
+        match machine(m).and_then(Machine::declared_home) {
+            Some(p) => {
+                // SAFETY: xyz holds three doubles.
+                unsafe { ptr::copy_nonoverlapping(p.as_ptr(), xyz, 3) };
+                0
+            }
+            None => -1,
         }
-        None => -1,
-    }
+    })
 }
 
 /// A polar bed's centre, where its angle is undefined: `out[0..2]` its XY, `out[2]` the tolerance (mm) within which
@@ -401,14 +543,16 @@ pub unsafe extern "C" fn jointspace_reach_margin(
     z: f64,
     margin: *mut f64,
 ) -> c_int {
-    match machine(m).and_then(|m| m.reach_margin([x, y, z])) {
-        Some(v) if v.is_finite() => {
-            // SAFETY: margin points to a double.
-            unsafe { *margin = v };
-            0
+    guarded(-1, NO_BUFFER, || {
+        match machine(m).and_then(|m| m.reach_margin([x, y, z])) {
+            Some(v) if v.is_finite() => {
+                // SAFETY: margin points to a double.
+                unsafe { *margin = v };
+                0
+            }
+            _ => -1,
         }
-        _ => -1,
-    }
+    })
 }
 
 /// Where the plug-in's G-code move transform cuts the move `start → end` requested at `speed` and `accel`, so that
@@ -416,8 +560,9 @@ pub unsafe extern "C" fn jointspace_reach_margin(
 /// last move left the bed; `cut_spans` 0: only the centre shapes the move, no cuts at span boundaries). Writes up to
 /// `max` waypoints as `x, y, fraction` triples (the fraction of the move each stands for, which Z and E follow; the
 /// last is the move's end, or the centre when the end lies within its tolerance) and returns how many; −1 if more
-/// were needed; −2, with the reason in `error`, when a piece cannot be made (the whole move is then refused before
-/// any of it is queued).
+/// were needed; −2, with the reason in `error`, when a piece cannot be made or the move's numbers are not usable (as
+/// [`jointspace_check_move`] refuses them, `bed_angle` finite too): the whole move is then refused before any of it
+/// is queued.
 ///
 /// # Safety
 /// `out` holds `3 · max` doubles; `error` holds `error_len` bytes or is null.
@@ -440,33 +585,37 @@ pub unsafe extern "C" fn jointspace_move_waypoints(
     error: *mut c_char,
     error_len: usize,
 ) -> c_int {
-    let Some(m) = machine(m) else { return -1 };
-    let points = match m.waypoints(
-        [start_x, start_y, start_z],
-        [end_x, end_y, end_z],
-        speed,
-        accel,
-        bed_angle,
-        cut_spans != 0,
-    ) {
-        Ok(points) => points,
-        Err(e) => {
-            write_message(&e, error, error_len);
-            return -2;
+    guarded(-2, (error, error_len), || {
+        let Some(m) = machine(m) else { return -1 };
+        let (start, end) = ([start_x, start_y, start_z], [end_x, end_y, end_z]);
+        let usable = usable_move(start, end, speed, accel).and_then(|()| {
+            bed_angle
+                .is_finite()
+                .then_some(())
+                .ok_or_else(|| format!("bed angle {bed_angle} is not finite"))
+        });
+        let points = match usable
+            .and_then(|()| m.waypoints(start, end, speed, accel, bed_angle, cut_spans != 0))
+        {
+            Ok(points) => points,
+            Err(e) => {
+                write_message(&e, error, error_len);
+                return -2;
+            }
+        };
+        if points.len() > usize::try_from(max).unwrap_or(0) {
+            return -1;
         }
-    };
-    if points.len() > usize::try_from(max).unwrap_or(0) {
-        return -1;
-    }
-    for (i, p) in points.iter().enumerate() {
-        // SAFETY: i < max, and out holds 3 · max doubles.
-        unsafe {
-            *out.add(3 * i) = p.x;
-            *out.add(3 * i + 1) = p.y;
-            *out.add(3 * i + 2) = p.fraction;
+        for (i, p) in points.iter().enumerate() {
+            // SAFETY: i < max, and out holds 3 · max doubles.
+            unsafe {
+                *out.add(3 * i) = p.x;
+                *out.add(3 * i + 1) = p.y;
+                *out.add(3 * i + 2) = p.fraction;
+            }
         }
-    }
-    points.len() as c_int
+        points.len() as c_int
+    })
 }
 
 /// A SCARA's calibration pattern: `count` crosses of `cross_size` mm at well-conditioned poses this machine
@@ -485,26 +634,28 @@ pub unsafe extern "C" fn jointspace_scara_pattern(
     template: *mut c_char,
     template_len: usize,
 ) -> c_int {
-    if !(cross_size > 0.0 && cross_size.is_finite()) {
-        return -1;
-    }
-    let options = calibrate::scara::PatternOptions {
-        cross_size,
-        ..Default::default()
-    };
-    let count = usize::try_from(count).unwrap_or(0);
-    let Some((pattern, csv)) = machine(m).and_then(|m| m.scara_pattern(count, &options)) else {
-        return -1;
-    };
-    if pattern.poses.is_empty() {
-        return -1;
-    }
-    if pattern.gcode.len() >= gcode_len || csv.len() >= template_len {
-        return -2;
-    }
-    write_message(&pattern.gcode, gcode, gcode_len);
-    write_message(&csv, template, template_len);
-    pattern.poses.len() as c_int
+    guarded(-1, NO_BUFFER, || {
+        if !(cross_size > 0.0 && cross_size.is_finite()) {
+            return -1;
+        }
+        let options = calibrate::scara::PatternOptions {
+            cross_size,
+            ..Default::default()
+        };
+        let count = usize::try_from(count).unwrap_or(0);
+        let Some((pattern, csv)) = machine(m).and_then(|m| m.scara_pattern(count, &options)) else {
+            return -1;
+        };
+        if pattern.poses.is_empty() {
+            return -1;
+        }
+        if pattern.gcode.len() >= gcode_len || csv.len() >= template_len {
+            return -2;
+        }
+        write_message(&pattern.gcode, gcode, gcode_len);
+        write_message(&csv, template, template_len);
+        pattern.poses.len() as c_int
+    })
 }
 
 /// The centre scan's passes for `settings`: their arm readings in the order to run them (into `arms`, up to
@@ -524,28 +675,30 @@ pub unsafe extern "C" fn jointspace_scan_passes(
     error: *mut c_char,
     error_len: usize,
 ) -> c_int {
-    // SAFETY: per the contract (null is refused).
-    let Some(settings) = (unsafe { settings.as_ref() }) else {
-        return -1;
-    };
-    let sweep = settings.sweep();
-    let passes = match calibrate::sweep::pass_arms(&sweep) {
-        Ok(p) => p,
-        Err(e) => {
-            write_message(&e.to_string(), error, error_len);
+    guarded(-1, (error, error_len), || {
+        // SAFETY: per the contract (null is refused).
+        let Some(settings) = (unsafe { settings.as_ref() }) else {
             return -1;
+        };
+        let sweep = settings.sweep();
+        let passes = match calibrate::sweep::pass_arms(&sweep) {
+            Ok(p) => p,
+            Err(e) => {
+                write_message(&e.to_string(), error, error_len);
+                return -1;
+            }
+        };
+        if passes.len() > usize::try_from(max).unwrap_or(0) {
+            return -2;
         }
-    };
-    if passes.len() > usize::try_from(max).unwrap_or(0) {
-        return -2;
-    }
-    for (i, arm) in passes.iter().enumerate() {
-        // SAFETY: i < max, and arms holds max doubles.
-        unsafe { *arms.add(i) = *arm };
-    }
-    // SAFETY: per the contract.
-    unsafe { *bed_overlap = sweep.bed_overlap() };
-    passes.len() as c_int
+        for (i, arm) in passes.iter().enumerate() {
+            // SAFETY: i < max, and arms holds max doubles.
+            unsafe { *arms.add(i) = *arm };
+        }
+        // SAFETY: per the contract.
+        unsafe { *bed_overlap = sweep.bed_overlap() };
+        passes.len() as c_int
+    })
 }
 
 /// The centre from a sweep's ADC reports: `samples` holds `count` rows of (pass, arm mm, bed rad, ADC value 0..1).
@@ -567,40 +720,116 @@ pub unsafe extern "C" fn jointspace_scan_centre(
     report: *mut c_char,
     report_len: usize,
 ) -> c_int {
-    // SAFETY: per the contract (null is refused).
-    let Some(settings) = (unsafe { settings.as_ref() }) else {
-        return -1;
-    };
-    let rows = if samples.is_null() || count == 0 {
-        &[][..]
-    } else {
-        // SAFETY: per the contract, samples holds 4 · count doubles.
-        unsafe { std::slice::from_raw_parts(samples, 4 * count) }
-    };
-    let accepted = scan::samples_from_rows(rows).and_then(|s| scan::scan_centre(settings, &s));
-    let scan = match accepted {
-        Ok(scan) => scan,
-        Err(e) => {
-            write_message(&e.to_string(), report, report_len);
+    guarded(-1, (report, report_len), || {
+        // SAFETY: per the contract (null is refused).
+        let Some(settings) = (unsafe { settings.as_ref() }) else {
             return -1;
+        };
+        let Some(values) = count.checked_mul(4) else {
+            return -1;
+        };
+        let rows = if samples.is_null() || count == 0 {
+            &[][..]
+        } else {
+            // SAFETY: per the contract, samples holds 4 · count doubles.
+            unsafe { std::slice::from_raw_parts(samples, values) }
+        };
+        let accepted = scan::samples_from_rows(rows).and_then(|s| scan::scan_centre(settings, &s));
+        let scan = match accepted {
+            Ok(scan) => scan,
+            Err(e) => {
+                write_message(&e.to_string(), report, report_len);
+                return -1;
+            }
+        };
+        let summary = scan::summary(&scan.result);
+        if scan.detections_csv.len() >= csv_len || summary.len() >= report_len {
+            return -2;
         }
-    };
-    let summary = scan::summary(&scan.result);
-    if scan.detections_csv.len() >= csv_len || summary.len() >= report_len {
-        return -2;
+        write_message(&scan.detections_csv, csv, csv_len);
+        write_message(&summary, report, report_len);
+        let r = &scan.result;
+        let values = [
+            r.arm_zero_offset,
+            r.arm_lateral_offset,
+            r.sigma_arm_zero_offset,
+            r.sigma_arm_lateral_offset,
+        ];
+        for (i, v) in values.into_iter().enumerate() {
+            // SAFETY: per the contract, result holds four doubles.
+            unsafe { *result.add(i) = v };
+        }
+        0
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_becomes_the_failure_value_with_its_reason() {
+        let mut error = [0 as c_char; 160];
+        let rc = guarded(-1, (error.as_mut_ptr(), error.len()), || -> c_int {
+            panic!("a bug at the straight arm")
+        });
+        assert_eq!(rc, -1);
+        // SAFETY: write_message NUL-terminates within the buffer.
+        let reason = unsafe { CStr::from_ptr(error.as_ptr()) }.to_string_lossy();
+        assert!(
+            reason.starts_with("internal error in jointspace"),
+            "{reason}"
+        );
+        assert!(reason.contains("a bug at the straight arm"), "{reason}");
+        let formatted = guarded(f64::INFINITY, NO_BUFFER, || -> f64 { panic!("{}", 1 + 1) });
+        assert_eq!(formatted, f64::INFINITY);
+        assert_eq!(guarded(-1, NO_BUFFER, || 7), 7);
     }
-    write_message(&scan.detections_csv, csv, csv_len);
-    write_message(&summary, report, report_len);
-    let r = &scan.result;
-    let values = [
-        r.arm_zero_offset,
-        r.arm_lateral_offset,
-        r.sigma_arm_zero_offset,
-        r.sigma_arm_lateral_offset,
-    ];
-    for (i, v) in values.into_iter().enumerate() {
-        // SAFETY: per the contract, result holds four doubles.
-        unsafe { *result.add(i) = v };
+
+    #[test]
+    fn unusable_numbers_are_named() {
+        let ok = [1.0, 2.0, 3.0];
+        let named = |start, end, speed, accel| usable_move(start, end, speed, accel).err();
+        assert_eq!(named(ok, ok, 100.0, 3000.0), None);
+        assert_eq!(
+            named(ok, ok, 0.0, -1.0),
+            None,
+            "≤ 0 checks the segment only"
+        );
+        assert_eq!(
+            named([f64::INFINITY, 0.0, 0.0], ok, 100.0, 3000.0).as_deref(),
+            Some("X=inf is not a finite coordinate")
+        );
+        assert_eq!(
+            named(ok, [0.0, 0.0, 1e200], 100.0, 3000.0).as_deref(),
+            Some("Z=1e200 mm is beyond any machine")
+        );
+        assert_eq!(
+            named(ok, [0.0, -2e9, 0.0], 100.0, 3000.0).as_deref(),
+            Some("Y=-2e9 mm is beyond any machine")
+        );
+        assert_eq!(named(ok, [1e9, -1e9, 0.0], 100.0, 3000.0), None);
+        assert_eq!(
+            named(ok, ok, f64::NAN, 3000.0).as_deref(),
+            Some("speed=NaN is not a finite number")
+        );
     }
-    0
+
+    #[test]
+    fn caps_klipper_cannot_divide_by_are_refused() {
+        let verdict = |caps| MoveVerdict {
+            caps,
+            ends_at_rest: true,
+        };
+        assert!(positive_caps(verdict(Some((0.0, 0.0))), 100.0, 3000.0).is_err());
+        assert!(positive_caps(verdict(Some((f64::NAN, 10.0))), 100.0, 3000.0).is_err());
+        assert!(positive_caps(verdict(Some((1e-4, 0.0))), 100.0, 3000.0).is_err());
+        let slowed = verdict(Some((1e-4, 1.0)));
+        assert_eq!(positive_caps(slowed, 100.0, 3000.0), Ok(slowed));
+        // Segment only: no caps whatever the limits said.
+        assert_eq!(
+            positive_caps(verdict(Some((0.0, 0.0))), 0.0, 3000.0),
+            Ok(verdict(None))
+        );
+    }
 }

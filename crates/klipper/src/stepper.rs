@@ -113,7 +113,8 @@ const NEAR_CENTRE: f64 = 1e-3;
 #[inline]
 fn radial_side_angle(m: &Move, x: f64, y: f64) -> Option<Option<f64>> {
     let distance2 = x * x + y * y;
-    if distance2 >= NEAR_CENTRE * NEAR_CENTRE {
+    // Written so that NaN (a move with a non-finite point) takes the plain path, which never returns NaN.
+    if distance2.is_nan() || distance2 >= NEAR_CENTRE * NEAR_CENTRE {
         return None;
     }
     let [rx, ry, _] = m.axes_r;
@@ -190,9 +191,20 @@ unsafe extern "C" fn calc_position(
     // SAFETY: Klipper calls this only with a stepper allocated by `allocate` (so `sk` is the first field of a
     // JointspaceStepper) and a live move; it writes neither while the callback runs on this stepper.
     let (stepper, m) = unsafe { (&*sk.cast::<JointspaceStepper>(), &*m) };
-    stepper
-        .solver
-        .position(m, move_time, stepper.sk.commanded_pos, stepper.fused)
+    let commanded = stepper.sk.commanded_pos;
+    // A panic must not unwind into Klipper's C code, and Klipper must never read NaN: the motor then stays where it
+    // was commanded. (A non-finite move reached NaN through `radial_side_angle`, whose `distance2 >= NEAR²` test
+    // is false for NaN; found by the `klipper_abi` fuzz target.)
+    crate::guarded(commanded, crate::NO_BUFFER, || {
+        let position = stepper
+            .solver
+            .position(m, move_time, commanded, stepper.fused);
+        if position.is_finite() {
+            position
+        } else {
+            commanded
+        }
+    })
 }
 
 /// `post_cb` of a solver whose commanded position needs no fix-up.

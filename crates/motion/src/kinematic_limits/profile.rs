@@ -25,10 +25,11 @@ pub(super) struct Line {
 }
 
 impl Line {
-    /// The line `start → end`, or `None` when it has no length.
+    /// The line `start → end`, or `None` when it has no length, or no finite one (a non-finite end, or ends so far
+    /// apart that the squared distance overflows: its direction would be NaN; the segment check refuses such moves).
     pub(super) fn new(start: Vec3, end: Vec3) -> Option<Line> {
         let length = distance(start, end);
-        (length > 0.0).then(|| Line {
+        (length > 0.0 && length.is_finite()).then(|| Line {
             start,
             dir: [0, 1, 2].map(|k| (end[k] - start[k]) / length),
             length,

@@ -28,8 +28,8 @@ pub(super) struct RestEnd {
 }
 
 /// The acceleration (at most `accel`) with which the toolhead may leave the rest pose over the span, or arrive
-/// there, within the `limits` of motors without a closed form (see the module's notes); zero where a joint cannot
-/// be evaluated.
+/// there, within the `limits` of motors without a closed form (see the module's notes); zero where the joints cannot
+/// be evaluated anywhere beside the pose.
 pub(super) fn rest_accel(
     kin: &dyn Kinematics,
     limits: &[MotorLimit],
@@ -37,13 +37,14 @@ pub(super) fn rest_accel(
     accel: f64,
     minimum_cruise_ratio: f64,
 ) -> f64 {
-    let Some(rates) = joint_rates(kin, limits, end) else {
+    let (at, rates) = joint_rates(kin, limits, end);
+    if at.is_empty() {
         return 0.0;
-    };
+    }
     let smoothed_from = (1.0 - minimum_cruise_ratio).max(0.0) * end.length / 2.0;
     let mut a = accel;
     for (limit, rates) in limits.iter().zip(&rates) {
-        let shape = RestShape::new(rates, end.length, smoothed_from);
+        let shape = RestShape::new(&at, rates, smoothed_from);
         if let Some(max_velocity) = limit.max_velocity {
             a = a.min(max_velocity * max_velocity / (shape.speed * shape.speed));
         }
@@ -62,20 +63,31 @@ fn sample_at(i: usize, length: f64) -> f64 {
     length * f * f
 }
 
-/// Signed `q'` of each limited motor at the samples (`None` where the kinematics cannot give it).
-fn joint_rates(kin: &dyn Kinematics, limits: &[MotorLimit], end: RestEnd) -> Option<Vec<Vec<f64>>> {
+/// The samples (mm from the pose) where the kinematics give the joints' rates, and the signed `q'` of each limited
+/// motor there. A sample they cannot evaluate is left out: on a span the segment check allows, that is a point
+/// within rounding of the pose itself (the arm exactly straight, or a hair beyond its reach); on a span that leaves
+/// the workspace there are none at all.
+fn joint_rates(
+    kin: &dyn Kinematics,
+    limits: &[MotorLimit],
+    end: RestEnd,
+) -> (Vec<f64>, Vec<Vec<f64>>) {
     let mut rows = vec![[0.0; 3]; kin.motors().len()];
+    let mut at = Vec::with_capacity(REST_SAMPLES);
     let mut rates = vec![Vec::with_capacity(REST_SAMPLES); limits.len()];
     for i in 1..=REST_SAMPLES {
         let s = sample_at(i, end.length);
         let p = [0, 1, 2].map(|k| end.pose[k] + end.away[k] * s);
-        kin.jacobian(p, &mut rows).ok()?;
+        if kin.jacobian(p, &mut rows).is_err() {
+            continue;
+        }
+        at.push(s);
         for (rate, limit) in rates.iter_mut().zip(limits) {
             let row = rows[limit.motor];
             rate.push(row[0] * end.away[0] + row[1] * end.away[1] + row[2] * end.away[2]);
         }
     }
-    Some(rates)
+    (at, rates)
 }
 
 /// What one joint does beside the pose, per unit of toolhead acceleration `a` (bounds from samples, with margin).
@@ -91,8 +103,8 @@ struct RestShape {
 }
 
 impl RestShape {
-    fn new(rates: &[f64], length: f64, smoothed_from: f64) -> RestShape {
-        let s: Vec<f64> = (1..=rates.len()).map(|i| sample_at(i, length)).collect();
+    /// From the rates at the samples `s` (at least one, increasing).
+    fn new(s: &[f64], rates: &[f64], smoothed_from: f64) -> RestShape {
         let g: Vec<f64> = s
             .iter()
             .zip(rates)
@@ -100,7 +112,7 @@ impl RestShape {
             .collect();
         let mut shape = RestShape {
             speed: g.iter().copied().fold(0.0, f64::max),
-            jump: g[0],
+            jump: g.first().copied().unwrap_or(0.0),
             accelerating: 0.0,
             cruising: 0.0,
         };

@@ -79,24 +79,37 @@ pub fn split(
     if binds { raw } else { Vec::new() }
 }
 
-/// Where the spans of `line` begin and end (mm along it, sorted, from 0 to its length): where each motor's caps
-/// change, and a rest span's length from each end the toolhead rests at.
+/// Cuts closer than this (mm) to each other or to an end of the move are one cut.
+const CUT_TOLERANCE: f64 = 1e-9;
+
+/// Where the spans of `line` begin and end (mm along it, sorted, from exactly 0 to exactly its length, so at least
+/// one span even on a move shorter than [`CUT_TOLERANCE`]): where each motor's caps change, and a rest span's
+/// length from each end the toolhead rests at.
 fn cuts(line: &Line, profiles: &[(MotorLimit, Profile)], speed: f64, rests: [bool; 2]) -> Vec<f64> {
     let length = line.length;
     let rest_length = GENERAL_SPAN_MM.min(0.5 * length);
-    let mut cuts = vec![0.0, length];
+    let mut inner = Vec::new();
     for (limit, profile) in profiles {
-        profile.breakpoints(line, limit, speed, &mut cuts);
+        profile.breakpoints(line, limit, speed, &mut inner);
     }
     if rests[0] {
-        cuts.push(rest_length);
+        inner.push(rest_length);
     }
     if rests[1] {
-        cuts.push(length - rest_length);
+        inner.push(length - rest_length);
     }
-    cuts.retain(|c| c.is_finite());
-    cuts.sort_by(f64::total_cmp);
-    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    inner.retain(|&c| c >= CUT_TOLERANCE && c <= length - CUT_TOLERANCE);
+    inner.sort_by(f64::total_cmp);
+    let mut cuts = Vec::with_capacity(inner.len() + 2);
+    cuts.push(0.0);
+    let mut last = 0.0;
+    for c in inner {
+        if c - last >= CUT_TOLERANCE {
+            cuts.push(c);
+            last = c;
+        }
+    }
+    cuts.push(length);
     cuts
 }
 
@@ -137,6 +150,9 @@ impl Rest<'_> {
     /// Cap the first span when the move leaves a rest pose and the last when it arrives at one.
     fn fit(&self, line: &Line, rests: [bool; 2], spans: &mut [Span]) {
         let n = spans.len();
+        if n == 0 {
+            return;
+        }
         let first = spans[0].end;
         let last = line.length - if n > 1 { spans[n - 2].end } else { 0.0 };
         let end = line.at(line.length);
@@ -188,4 +204,128 @@ fn cap_from_rest(span: &mut Span, accel: f64, length: f64, neighbour_speed: f64)
         .min(neighbour_speed);
     span.max_speed = speed;
     span.max_accel = accel.min(speed * speed / (2.0 * length));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kinematics::ScaraParams;
+    use kinematics::polar::Polar;
+    use kinematics::scara::Scara;
+    use kinematics::{PolarParams, StepperParams};
+
+    /// The FEKT arm (100 + 100 mm) with the example's singular band.
+    fn arm() -> Scara {
+        Scara::new(ScaraParams {
+            singularity_margin: 0.05,
+            ..ScaraParams::fekt_example()
+        })
+        .expect("valid params")
+    }
+
+    fn polar() -> Polar {
+        let stepper = |name: &str, step: f64| StepperParams::new(name, step);
+        Polar::new(PolarParams {
+            bed: stepper("stepper_bed", std::f64::consts::TAU / 16000.0),
+            arm: stepper("stepper_arm", 1.0 / 80.0),
+            z: stepper("stepper_z", 0.0025),
+            arm_zero_offset: 0.0,
+            arm_lateral_offset: 0.0,
+        })
+        .expect("valid params")
+    }
+
+    fn joints() -> [MotorLimit; 2] {
+        [0, 1].map(|motor| MotorLimit {
+            motor,
+            max_velocity: Some(6.0),
+            max_accel: Some(300.0),
+        })
+    }
+
+    /// A move shorter than the cut tolerance beside the straight arm (it rests there at both ends) used to lose its
+    /// end cut to the tolerance, leaving no span at all, and the rest fit indexed the empty list. Now it is one span
+    /// to its exact end, with a positive cap (the speed its acceleration from rest reaches over 1e-10 mm).
+    #[test]
+    fn a_move_shorter_than_the_cut_tolerance_is_one_span_to_its_end() {
+        let kin = arm();
+        for inside in [1e-12, 1e-10, 1e-9, 1e-6] {
+            let start = [0.0, 200.0 - inside, 0.0];
+            for dir in [
+                [1.0, 0.0, 0.0],
+                [0.0, -1.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ] {
+                let end = [0, 1, 2].map(|k| start[k] + 1e-10 * dir[k]);
+                let length = Line::new(start, end).map_or(0.0, |l| l.length);
+                let spans = split(&kin, &joints(), start, end, 100.0, 2000.0, 0.5);
+                if let Some(last) = spans.last() {
+                    assert_eq!(last.end, length, "{inside} {dir:?}: {spans:?}");
+                }
+                for s in &spans {
+                    assert!(s.max_speed >= 0.0 && s.max_accel >= 0.0, "{s:?}");
+                }
+            }
+        }
+    }
+
+    /// A cut within the tolerance of the move's end no longer replaces the end: the last span ends at the length.
+    #[test]
+    fn cuts_run_from_zero_to_the_exact_length() {
+        let kin = arm();
+        let line = Line::new([0.0, 150.0, 0.0], [0.0, 199.99, 0.0]).expect("a line");
+        let profiles: Vec<(MotorLimit, Profile)> = joints()
+            .iter()
+            .map(|l| (*l, Profile::new(&kin, l.motor, &line)))
+            .collect();
+        let cuts = cuts(&line, &profiles, 100.0, [false, true]);
+        assert_eq!(cuts.first(), Some(&0.0));
+        assert_eq!(cuts.last(), Some(&line.length));
+        assert!(
+            cuts.windows(2).all(|w| w[1] - w[0] >= CUT_TOLERANCE),
+            "{cuts:?}"
+        );
+        // Both rest cuts of a tiny move fall within the tolerance of its ends: one span.
+        let tiny = Line::new([0.0, 199.99, 0.0], [0.0, 199.99 - 1e-10, 0.0]).expect("a line");
+        assert_eq!(cuts_of(&kin, &tiny), vec![0.0, tiny.length]);
+    }
+
+    fn cuts_of(kin: &dyn Kinematics, line: &Line) -> Vec<f64> {
+        let profiles: Vec<(MotorLimit, Profile)> = joints()
+            .iter()
+            .map(|l| (*l, Profile::new(kin, l.motor, line)))
+            .collect();
+        cuts(line, &profiles, 100.0, [true, true])
+    }
+
+    /// A move to a point Python reads as infinity, or with a Z so large its squared length overflows, has no line:
+    /// its direction would be NaN (the polar bed's bounds clamped NaN and panicked; the SCARA's cuts were all
+    /// dropped as non-finite, leaving no span). No spans: the segment check refuses such a move.
+    #[test]
+    fn a_move_without_a_finite_length_has_no_spans() {
+        let bed = [MotorLimit {
+            motor: 0,
+            max_velocity: Some(5.0),
+            max_accel: Some(200.0),
+        }];
+        for end in [
+            [f64::INFINITY, 0.0, 1.0],
+            [f64::INFINITY, 1.0, 1.0],
+            [1e300, 1e300, 1.0],
+        ] {
+            assert!(split(&polar(), &bed, [0.0; 3], end, 100.0, 3000.0, 0.5).is_empty());
+        }
+        let spans = split(
+            &arm(),
+            &joints(),
+            [0.0, 150.0, 1.0],
+            [0.0, 199.99, 1e199],
+            100.0,
+            2000.0,
+            0.5,
+        );
+        assert!(spans.is_empty(), "{spans:?}");
+        assert!(Line::new([0.0; 3], [0.0, 0.0, 1e199]).is_none());
+    }
 }

@@ -57,6 +57,13 @@ pub fn waypoints(
     points.extend(route.turn);
     if end[0] != c.at[0] || end[1] != c.at[1] {
         push_line(&mut points, at_centre, end, (route.fraction, 1.0), cuts);
+    } else if points.last().is_none_or(|p| p.fraction < 1.0) {
+        // From within the circle onto the centre: the whole move is that one radial piece.
+        points.push(Waypoint {
+            x: c.at[0],
+            y: c.at[1],
+            fraction: 1.0,
+        });
     }
     points
 }

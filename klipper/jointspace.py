@@ -235,10 +235,14 @@ class Machine:
             raise self.error(self._reason())
         return [self._xyz[0], self._xyz[1], self._xyz[2]]
 
-    def inverse(self, pos):
+    def inverse(self, pos, previous=None):
+        """Motor positions of pos (angles nearest `previous`, a dict by motor, where given), or None."""
         for i in range(3):
             self._xyz[i] = pos[i]
-        if self.lib.jointspace_inverse(self.handle, self._xyz, self.ffi.NULL, self._motors,
+        near = self.ffi.NULL
+        if previous is not None:
+            near = self.ffi.new("double[]", [previous.get(n, 0.) for n in self.motor_names])
+        if self.lib.jointspace_inverse(self.handle, self._xyz, near, self._motors,
                                        self._error, ERROR_LEN):
             return None
         return [self._motors[i] for i in range(len(self.motor_names))]
@@ -310,6 +314,8 @@ class JointspaceKinematics:
         self.centre_slowdown = "exact"
         self.motor_steppers = []  # (machine motor, Klipper stepper) in Klipper's order, from the subclass
         self.wrapped = {}         # stepper -> the solver a wrapper (input shaper) wraps now, once swapped
+        self.turn_angle = None    # the nozzle's unwrapped angle about a polar centre (note_xy)
+        self.last_readings = {}
         self.joint_rails = {}     # section name -> rail of an XY joint that homes to an endstop
         self.homed = set()
         self.limit_z = (1.0, -1.0)
@@ -355,6 +361,9 @@ class JointspaceKinematics:
     def set_position(self, newpos, homing_axes):
         for s in self.steppers:
             s.set_position(newpos)
+        # The motors' readings are declared anew (homing, SET_KINEMATIC_POSITION): whole turns start again.
+        self.turn_angle = None
+        self.note_xy(newpos)
         letters = _axis_letters(homing_axes)
         if "x" in letters and "y" in letters:
             self.homed.add("xy")
@@ -546,6 +555,28 @@ class JointspaceKinematics:
         pass
 
     # -- status -----------------------------------------------------------------------------------
+    def note_xy(self, pos):
+        """Follows the nozzle's angle about a polar centre through every position the move transform queues, its whole
+        turns counted (the bed's reading keeps them; the toolhead position does not)."""
+        if pos[0] == 0. and pos[1] == 0.:
+            return
+        angle = math.atan2(pos[1], pos[0])
+        if self.turn_angle is not None:
+            angle += 2. * math.pi * round((self.turn_angle - angle) / (2. * math.pi))
+        self.turn_angle = angle
+
+    def motor_readings(self):
+        """The motors' commanded readings: where the queued moves leave them (a polar bed with its whole turns; on the
+        centre the bed where it arrived), the last known ones where the position has no pose."""
+        previous = dict(self.last_readings)
+        if self.turn_angle is not None:
+            for motor in self.turning_motors:
+                previous[motor] = self.turn_angle
+        motors = self.machine.inverse(self.toolhead.get_position(), previous)
+        if motors is not None:
+            self.last_readings = dict(zip(self.machine.motor_names, motors))
+        return self.last_readings
+
     def get_status(self, eventtime):
         pos = self.toolhead.get_position()
         status = {
@@ -554,12 +585,10 @@ class JointspaceKinematics:
             "axis_minimum": self.axes_min,
             "axis_maximum": self.axes_max,
         }
-        motors = self.machine.inverse(pos)
-        if motors is not None:
-            # Angles in degrees, rails in mm.
-            status["jointspace_joints"] = {
-                n: (math.degrees(v) if n in self.angle_motors else v)
-                for n, v in zip(self.machine.motor_names, motors)}
+        # The motors' readings (angles in degrees, rails in mm): the bed's turns counted, defined at the centre too.
+        readings = self.motor_readings()
+        status["jointspace_joints"] = {
+            n: (math.degrees(v) if n in self.angle_motors else v) for n, v in readings.items()}
         margin = self.machine.reach_margin(pos)
         if margin is not None:
             status["jointspace_reach_margin"] = margin
@@ -573,6 +602,7 @@ class PolarKinematics(JointspaceKinematics):
 
     joint_names = ("stepper_arm", "stepper_bed")
     angle_motors = ("stepper_bed",)
+    turning_motors = ("stepper_bed",)
 
     def __init__(self, toolhead, config):
         JointspaceKinematics.__init__(self, toolhead, config, "jointspace_polar")
@@ -647,6 +677,7 @@ class ScaraKinematics(JointspaceKinematics):
 
     joint_names = ("stepper_a", "stepper_b")
     angle_motors = joint_names
+    turning_motors = ()
 
     def __init__(self, toolhead, config):
         JointspaceKinematics.__init__(self, toolhead, config, "jointspace_scara")
@@ -755,7 +786,6 @@ class MoveSplitter:
         self.ffi, self.lib, self.handle = machine.ffi, machine.lib, machine.handle
         self.buffer = self.ffi.new("double[]", 3 * MAX_WAYPOINTS)
         self.error = self.ffi.new("char[]", ERROR_LEN)
-        self.bed_angle = 0.
         gcode_move = printer.lookup_object("gcode_move")
         self.next_transform = gcode_move.set_move_transform(self, force=True)
 
@@ -768,17 +798,17 @@ class MoveSplitter:
             self.next_transform.move(newpos, speed)
             return
         self.kin.refuse_unreachable(start, newpos)
-        if start[0] != 0. or start[1] != 0.:
-            self.bed_angle = math.atan2(start[1], start[0])
+        bed_angle = self.kin.turn_angle if self.kin.turn_angle is not None else 0.
         count = self.lib.jointspace_move_waypoints(
             self.handle, start[0], start[1], start[2], newpos[0], newpos[1], newpos[2], speed,
-            self.toolhead.max_accel, self.bed_angle, self.cut_spans, self.buffer, MAX_WAYPOINTS,
+            self.toolhead.max_accel, bed_angle, self.cut_spans, self.buffer, MAX_WAYPOINTS,
             self.error, ERROR_LEN)
         if count == -2:
             self.kin.refuse_unreachable(start, newpos, self.ffi.string(self.error).decode())
         if count < 1:
             # More pieces than worth it: the move stays whole and check_move caps it.
             self.next_transform.move(newpos, speed)
+            self.kin.note_xy(newpos)
             return
         b = self.buffer
         for i in range(count):
@@ -786,8 +816,7 @@ class MoveSplitter:
             rest = newpos[2:] if i == count - 1 else [s + (e - s) * f for s, e in zip(start[2:], newpos[2:])]
             pos = [b[3 * i], b[3 * i + 1]] + list(rest)
             self.next_transform.move(pos, speed)
-            if pos[0] != 0. or pos[1] != 0.:
-                self.bed_angle = math.atan2(pos[1], pos[0])
+            self.kin.note_xy(pos)
 
 
 class Jointspace:

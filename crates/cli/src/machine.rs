@@ -12,10 +12,18 @@ pub fn load_machine(path: &Path) -> miette::Result<Machine> {
     let (config, notes) =
         Machine::read(path).map_err(|e| miette::Report::new(diag::config_error(&e)))?;
     for note in &notes {
+        let kind = if note.refused { "error" } else { "warning" };
         match &note.span {
-            Some(span) => eprintln!("{span}: warning: {}", note.message),
-            None => eprintln!("{}: warning: {}", path.display(), note.message),
+            Some(span) => eprintln!("{span}: {kind}: {}", note.message),
+            None => eprintln!("{}: {kind}: {}", path.display(), note.message),
         }
+    }
+    let refused = notes.iter().filter(|n| n.refused).count();
+    if refused > 0 {
+        miette::bail!(
+            "{}: {refused} unknown option(s): the printer would not start on this file",
+            path.display()
+        );
     }
     Machine::from_config(config, &path.display().to_string())
         .map_err(|e| miette::miette!("{}: {e}", path.display()))

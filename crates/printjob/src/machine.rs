@@ -23,12 +23,14 @@ pub enum LoadError {
     Setup { path: PathBuf, source: SetupError },
 }
 
-/// Something in the configuration worth a warning: a value jointspace reads differently than expected, or a
-/// key it does not know (a typo?).
+/// Something in the configuration worth a word: a value jointspace reads differently than expected (a warning), or
+/// a key nothing reads in a section jointspace interprets (an error: Klipper refuses to start on such a file, so a
+/// front-end that builds this machine refuses it too).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigNote {
     pub span: Option<config::Span>,
     pub message: String,
+    pub refused: bool,
 }
 
 impl Machine {
@@ -74,13 +76,15 @@ fn notes(config: &MachineConfig) -> Vec<ConfigNote> {
     let warnings = config.warnings.iter().map(|w: &ConfigWarning| ConfigNote {
         span: w.span.clone(),
         message: w.message.clone(),
+        refused: false,
     });
     let unused = config.unused_keys().into_iter().map(|unused| ConfigNote {
         message: format!(
-            "option `{}` in [{}] is not one jointspace knows (a typo?); ignored",
+            "unknown option `{}` in [{}] (a typo?): Klipper refuses to start on it",
             unused.key, unused.section
         ),
         span: Some(unused.span),
+        refused: true,
     });
     warnings.chain(unused).collect()
 }

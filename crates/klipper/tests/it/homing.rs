@@ -319,3 +319,68 @@ fn polar_bed_with_an_endstop_homes_after_the_arm() {
         .count();
     assert!(bed_steps > 0, "the bed did not move while homing");
 }
+
+/// `printer.toolhead.jointspace_joints` are the motors' readings: after two full turns of the bed clockwise and a
+/// quarter back, the bed reads −630°, not the 90° the toolhead position's inverse gives; on the centre, where the
+/// position has no bed angle, the readings are still there (the bed where it arrived, the arm at 0).
+#[test]
+fn status_shows_the_motors_readings() {
+    let Some(hosts) = Hosts::get("status_shows_the_motors_readings") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = plugin_config(
+        &shared().join("golden/polar-synthetic/printer.cfg"),
+        &[("kinematics: polar", "kinematics: jointspace_polar")],
+        dir.path(),
+        "printer.cfg",
+    );
+    let mut text = std::fs::read_to_string(&config).expect("config");
+    text.push_str(
+        "\n[gcode_arcs]\nresolution: 1.0\n[gcode_macro SHOW_JOINTSPACE]\ngcode:\n  {action_respond_info(\"joints %s\" % (\
+         printer.toolhead.jointspace_joints,))}\n",
+    );
+    std::fs::write(&config, text).expect("write");
+    let gcode = write(
+        dir.path(),
+        "turns.gcode",
+        "SET_KINEMATIC_POSITION X=100 Y=0 Z=1\nG2 X100 Y0 I-100 J0 F6000\nG2 X100 Y0 I-100 J0\n\
+         G1 X0 Y100\nM400\nSHOW_JOINTSPACE\nG1 X0 Y0\nM400\nSHOW_JOINTSPACE\n",
+    );
+    let run = hosts.batch(KLIPPER, false, &config, &gcode, &dir.path().join("out"));
+    run.expect_success("turns");
+    let shown: Vec<(f64, f64)> = run
+        .log
+        .lines()
+        .filter_map(|l| l.split_once("joints {"))
+        .map(|(_, rest)| {
+            let value = |name: &str| -> f64 {
+                let after = rest.split_once(&format!("'{name}': ")).expect(name).1;
+                let number: String = after
+                    .chars()
+                    .take_while(|c| c.is_ascii_digit() || "-.e".contains(*c))
+                    .collect();
+                number.parse().expect("a number")
+            };
+            (value("stepper_bed"), value("stepper_arm"))
+        })
+        .collect();
+    let bed_step = 360.0 / 16000.0;
+    assert_eq!(shown.len(), 2, "{}", crate::hosts::tail(&run.log, 20));
+    assert!(
+        (shown[0].0 + 630.0).abs() <= bed_step,
+        "bed {} after the turns",
+        shown[0].0
+    );
+    assert!((shown[0].1 - 100.0).abs() <= 0.0125, "arm {}", shown[0].1);
+    assert!(
+        (shown[1].0 + 630.0).abs() <= bed_step,
+        "bed {} on the centre",
+        shown[1].0
+    );
+    assert!(
+        shown[1].1.abs() <= 0.0125,
+        "arm {} on the centre",
+        shown[1].1
+    );
+}

@@ -15,6 +15,11 @@ pub fn shared_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+            dir.display()
+        );
         println!("SKIPPED: shared data not found at {}", dir.display());
         None
     }

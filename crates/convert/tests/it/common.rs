@@ -14,6 +14,11 @@ pub fn shared() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+            dir.display()
+        );
         println!("SKIPPED: {} is absent", dir.display());
         None
     }

@@ -173,6 +173,11 @@ fn scara_print_matches_the_engine() {
     let dir = tempfile::tempdir().expect("temp dir");
     let case = shared().join("golden/scara-fekt-synthetic");
     if !case.is_dir() {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+            case.display()
+        );
         println!(
             "scara_print_matches_the_engine: skipped: {} is absent",
             case.display()
@@ -199,6 +204,11 @@ fn polar_print_with_offsets_matches_the_engine() {
     let dir = tempfile::tempdir().expect("temp dir");
     let case = shared().join("golden/polar-synthetic");
     if !case.is_dir() {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+            case.display()
+        );
         println!(
             "polar_print_with_offsets_matches_the_engine: skipped: {} is absent",
             case.display()

@@ -12,6 +12,11 @@ fn golden_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+            dir.display()
+        );
         eprintln!(
             "SKIPPED: {} is absent (the golden reference data lives in ../shared)",
             dir.display()

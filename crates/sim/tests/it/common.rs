@@ -9,6 +9,11 @@ pub fn corpus_circle() -> Option<Vec<u8>> {
     match std::fs::read(&path) {
         Ok(bytes) => Some(bytes),
         Err(_) => {
+            assert!(
+                std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+                "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+                path.display()
+            );
             println!(
                 "SKIP corpus: {} not found; using a generated circle print",
                 path.display()

@@ -116,7 +116,7 @@ fn grid_gcode() -> String {
 
 /// Audits one motor's stream: strictly increasing clocks, no two steps the same way closer than `max_speed`
 /// (units a second) allows, and the net step count.
-fn audit_motor(what: &str, steps: &[Step], step: f64, max_speed: f64) -> i64 {
+pub fn audit_motor(what: &str, steps: &[Step], step: f64, max_speed: f64) -> i64 {
     let least = (step / max_speed * CLOCK / 1.01).floor() as i64 - 1;
     for w in steps.windows(2) {
         assert!(

@@ -6,7 +6,7 @@
 #![allow(unsafe_code)]
 
 mod calibration;
-mod centre_grid;
+pub mod centre_grid;
 mod centre_scan;
 mod engine;
 mod examples;
@@ -17,5 +17,6 @@ mod layout;
 mod polar;
 mod routes;
 mod scara;
+mod scara_grid;
 pub mod solvers;
 mod splitting;

@@ -31,6 +31,12 @@ EXCLUDE_LINES=()
 for module in "${MODULES[@]}"; do
   EXCLUDE_LINES+=("$DEST/$module" "$DEST/__pycache__/${module%.py}.*")
 done
+# The kinematics names, for a printer.cfg without [jointspace]: a clear error saying to add it (with the section,
+# jointspace.py registers the real kinematics first and these files are never imported).
+KINEMATICS=(jointspace_polar.py jointspace_scara.py)
+for module in "${KINEMATICS[@]}"; do
+  EXCLUDE_LINES+=("klippy/kinematics/$module" "klippy/kinematics/__pycache__/${module%.py}.*")
+done
 
 exclude_file() {
   # The tree's own exclude list, if it is a git checkout (a worktree's .git is a file naming the real one).
@@ -42,6 +48,9 @@ if [ $UNINSTALL = 1 ]; then
     rm -f "$HOST_DIR/$DEST/$module" "$HOST_DIR/$DEST/__pycache__/${module%.py}".*
   done
   rmdir "$HOST_DIR/$DEST/__pycache__" 2>/dev/null || true
+  for module in "${KINEMATICS[@]}"; do
+    rm -f "$HOST_DIR/klippy/kinematics/$module" "$HOST_DIR/klippy/kinematics/__pycache__/${module%.py}".*
+  done
   if ex=$(exclude_file) && [ -f "$ex" ]; then
     for line in "${EXCLUDE_LINES[@]}"; do
       grep -vxF -- "$line" "$ex" > "$ex.tmp" || true
@@ -62,6 +71,9 @@ if [ "$(realpath "$LIBRARY")" != "$(realpath -m "$REPO/target/release/libjointsp
 fi
 for module in "${MODULES[@]}"; do
   ln -sfn "$HERE/$module" "$HOST_DIR/$DEST/$module"
+done
+for module in "${KINEMATICS[@]}"; do
+  ln -sfn "$HERE/jointspace_missing_section.py" "$HOST_DIR/klippy/kinematics/$module"
 done
 if ex=$(exclude_file); then
   mkdir -p "$(dirname "$ex")"

@@ -11,6 +11,8 @@ struct stepper_kinematics;
 struct jointspace_machine;
 
 const char *jointspace_version(void);
+/* FNV-1a hash of this file's bytes as the library was built from it: jointspace.py refuses another. */
+unsigned long long jointspace_header_hash(void);
 void jointspace_stepper_kinematics_layout(size_t *out);
 
 struct jointspace_machine *jointspace_machine_new(const char *config_text, int fused_arithmetic,

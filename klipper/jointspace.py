@@ -54,18 +54,44 @@ def _cdef_text():
 
 
 def _library_path(config):
-    candidates = [
-        os.environ.get("JOINTSPACE_LIBRARY"),
-        config.get("library", None) if config.get_name() == "jointspace" else None,
-        os.path.join(HERE, LIBRARY_NAME),
-        os.path.join(HERE, "..", "target", "release", LIBRARY_NAME),
-    ]
-    for path in candidates:
-        if path and os.path.isfile(path):
+    # A path the owner gave must exist: silently loading another library would hide a mistake.
+    given = [("[jointspace] library", config.get("library", None)
+              if config.get_name() == "jointspace" else None),
+             ("the environment variable JOINTSPACE_LIBRARY", os.environ.get("JOINTSPACE_LIBRARY"))]
+    for where, path in given:
+        if path:
+            if not os.path.isfile(path):
+                raise config.error(
+                    "jointspace: %s names %s, which does not exist (build it with klipper/install.sh, "
+                    "or remove the setting to use the library this plug-in was installed with)" % (where, path))
+            return os.path.realpath(path)
+    for path in (os.path.join(HERE, LIBRARY_NAME), os.path.join(HERE, "..", "target", "release", LIBRARY_NAME)):
+        if os.path.isfile(path):
             return os.path.realpath(path)
     raise config.error(
         "jointspace: %s not found (run klipper/install.sh, or set "
         "[jointspace] library: /path/to/%s)" % (LIBRARY_NAME, LIBRARY_NAME))
+
+
+def _header_hash():
+    # FNV-1a of jointspace.h, as the library computes it of the header it was built from.
+    with open(os.path.join(HERE, "jointspace.h"), "rb") as f:
+        data = f.read()
+    value = 0xcbf29ce484222325
+    for byte in bytearray(data):
+        value = ((value ^ byte) * 0x100000001b3) & 0xffffffffffffffff
+    return value
+
+
+def _check_built_from_this_header(config, lib, path):
+    try:
+        theirs = lib.jointspace_header_hash()
+    except AttributeError:
+        theirs = None
+    if theirs != _header_hash():
+        raise config.error(
+            "jointspace: %s was built from another version of jointspace.h than this plug-in's: rebuild it "
+            "(klipper/install.sh, or cargo build --release -p klipper) and restart" % (path,))
 
 
 def _stepper_kinematics_layout(ffi):
@@ -136,6 +162,7 @@ def load_library(config):
         path = _library_path(config)
         ffi.cdef(_cdef_text())
         lib = ffi.dlopen(path)
+        _check_built_from_this_header(config, lib, path)
         ours = ffi.new("size_t[5]")
         lib.jointspace_stepper_kinematics_layout(ours)
         theirs = _stepper_kinematics_layout(ffi)

@@ -157,6 +157,26 @@ fn machine<'a>(m: *const Machine) -> Option<&'a Machine> {
     unsafe { m.as_ref() }
 }
 
+/// FNV-1a (64-bit) of `klipper/jointspace.h` as this library was built from it.
+const HEADER_HASH: u64 = fnv1a(include_bytes!("../../../klipper/jointspace.h"));
+
+const fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
+    let mut i = 0;
+    while i < bytes.len() {
+        hash = (hash ^ bytes[i] as u64).wrapping_mul(0x0100_0000_01b3);
+        i += 1;
+    }
+    hash
+}
+
+/// The hash of the C interface's header this library was built from: the Python side hashes the header it hands
+/// cffi and refuses a library built from another (a plug-in updated without rebuilding its library).
+#[unsafe(no_mangle)]
+pub extern "C" fn jointspace_header_hash() -> u64 {
+    HEADER_HASH
+}
+
 /// The library version string (static).
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_version() -> *const c_char {

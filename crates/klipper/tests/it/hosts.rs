@@ -64,6 +64,16 @@ impl Hosts {
             .join(format!("{host}{}", if exact { "-exact" } else { "" }))
     }
 
+    /// The Python interpreter of a host's venv (it has cffi).
+    pub fn python(&self, host: &str) -> PathBuf {
+        self.dir.join(format!("venv-{host}/bin/python"))
+    }
+
+    /// The library the hosts load.
+    pub fn library(&self) -> &Path {
+        &self.library
+    }
+
     /// Runs `batch.sh` and returns its result; the output folder holds `queue_step.txt`, `klippy.log` and, in
     /// exact mode, `steps/<stepper>.txt`.
     pub fn batch(&self, host: &str, exact: bool, cfg: &Path, gcode: &Path, out: &Path) -> Run {

@@ -8,6 +8,7 @@
 mod calibration;
 pub mod centre_grid;
 mod centre_scan;
+mod config_errors;
 mod engine;
 mod examples;
 mod homing;

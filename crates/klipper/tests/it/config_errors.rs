@@ -1,0 +1,109 @@
+//! Set-up mistakes a printer owner makes, as Klipper reports them with the plug-in installed: each stops the host
+//! with a message that says what to do, never a bare "Error loading kinematics" or a silently different library.
+
+use std::path::Path;
+
+use crate::hosts::{Hosts, KALICO, KLIPPER, tail, workspace_root, write};
+
+fn polar_example(dir: &Path, name: &str, edit: impl Fn(String) -> String) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(workspace_root().join("klipper/examples/polar.cfg"))
+        .expect("polar example");
+    write(dir, name, &edit(text))
+}
+
+fn expect_refusal(hosts: &Hosts, host: &str, cfg: &Path, dir: &Path, phrase: &str) {
+    let input = write(dir, "home.gcode", "G28\n");
+    let out = dir.join(format!(
+        "{host}-{}",
+        cfg.file_stem().and_then(|s| s.to_str()).unwrap_or("run")
+    ));
+    let run = hosts.batch(host, false, cfg, &input, &out);
+    assert!(!run.success, "{host}: {} started", cfg.display());
+    assert!(
+        run.log.contains(phrase),
+        "{host}: no '{phrase}' in:\n{}",
+        tail(&run.log, 15)
+    );
+}
+
+#[test]
+fn set_up_mistakes_are_named() {
+    let Some(hosts) = Hosts::get("set_up_mistakes_are_named") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let no_section = polar_example(dir.path(), "no-section.cfg", |t| {
+        t.replace("[jointspace]\n", "")
+    });
+    let missing_library = polar_example(dir.path(), "missing-library.cfg", |t| {
+        t.replace(
+            "[jointspace]\n",
+            "[jointspace]\nlibrary: /nonexistent/libjointspace_klipper.so\n",
+        )
+    });
+    for host in [KLIPPER, KALICO] {
+        expect_refusal(
+            hosts,
+            host,
+            &no_section,
+            dir.path(),
+            "kinematics: jointspace_polar needs a [jointspace] section in printer.cfg",
+        );
+        expect_refusal(
+            hosts,
+            host,
+            &missing_library,
+            dir.path(),
+            "[jointspace] library names /nonexistent/libjointspace_klipper.so, which does not exist",
+        );
+    }
+}
+
+/// A library built from another `jointspace.h` than the plug-in's (the plug-in updated, the library not rebuilt) is
+/// refused: the header hash the library was built with equals the plug-in's hash of its own header, and not that of
+/// a header with one declaration more.
+#[test]
+fn a_library_from_another_header_is_refused() {
+    let Some(hosts) = Hosts::get("a_library_from_another_header_is_refused") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let plugin = workspace_root().join("klipper");
+    for name in ["jointspace.py", "jointspace_scan.py", "jointspace.h"] {
+        std::fs::copy(plugin.join(name), dir.path().join(name)).expect("copy the plug-in");
+    }
+    let script = r#"
+import sys, types
+sys.modules["chelper"] = types.ModuleType("chelper")
+sys.modules["stepper"] = types.ModuleType("stepper")
+sys.path.insert(0, sys.argv[1])
+import cffi, jointspace
+class Config:
+    def error(self, message):
+        return Exception(message)
+ffi = cffi.FFI()
+ffi.cdef(jointspace._cdef_text())
+lib = ffi.dlopen(sys.argv[2])
+jointspace._check_built_from_this_header(Config(), lib, sys.argv[2])
+print("accepted")
+with open(sys.argv[1] + "/jointspace.h", "a") as f:
+    f.write("int jointspace_new_function(void);\n")
+try:
+    jointspace._check_built_from_this_header(Config(), lib, sys.argv[2])
+except Exception as e:
+    print("refused:", e)
+"#;
+    let output = std::process::Command::new(hosts.python(KLIPPER))
+        .arg("-c")
+        .arg(script)
+        .arg(dir.path())
+        .arg(hosts.library())
+        .output()
+        .expect("python runs");
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        text.contains("accepted") && text.contains("built from another version of jointspace.h"),
+        "{text}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}

@@ -17,6 +17,8 @@ void jointspace_stepper_kinematics_layout(size_t *out);
 
 struct jointspace_machine *jointspace_machine_new(const char *config_text, int fused_arithmetic,
                                                   char *error, size_t error_len);
+struct jointspace_machine *jointspace_machine_new_from_file(const char *path, int fused_arithmetic,
+                                                            char *error, size_t error_len);
 void jointspace_machine_free(struct jointspace_machine *m);
 const char *jointspace_machine_read_keys(struct jointspace_machine *m);
 int jointspace_motor_count(struct jointspace_machine *m);

@@ -205,8 +205,15 @@ class Machine:
         self.ffi, self.lib = load_library(config)
         ffi, lib = self.ffi, self.lib
         error = ffi.new("char[]", ERROR_LEN)
-        handle = lib.jointspace_machine_new(_config_text(config).encode(), _LIBRARY["fused"],
-                                            error, ERROR_LEN)
+        # Built from the owner's printer.cfg as the jointspace command line builds it (errors name its lines); from
+        # the sections as Klipper read them when there is no such file.
+        config_file = config.get_printer().get_start_args().get("config_file")
+        if config_file and os.path.isfile(config_file):
+            handle = lib.jointspace_machine_new_from_file(
+                os.path.abspath(config_file).encode(), _LIBRARY["fused"], error, ERROR_LEN)
+        else:
+            handle = lib.jointspace_machine_new(_config_text(config).encode(), _LIBRARY["fused"],
+                                                error, ERROR_LEN)
         if handle == ffi.NULL:
             raise config.error("jointspace: %s" % (ffi.string(error).decode(),))
         self.handle = ffi.gc(handle, lib.jointspace_machine_free)

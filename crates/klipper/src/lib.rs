@@ -226,14 +226,53 @@ pub unsafe extern "C" fn jointspace_machine_new(
         }
         // SAFETY: per the contract, a NUL-terminated string.
         let text = unsafe { CStr::from_ptr(config_text) }.to_string_lossy();
-        match Machine::from_config_text(&text, fused_arithmetic != 0) {
-            Ok(m) => Box::into_raw(Box::new(m)),
-            Err(e) => {
-                write_message(&e, error, error_len);
-                ptr::null_mut()
-            }
-        }
+        boxed_machine(
+            Machine::from_config_text(&text, fused_arithmetic != 0),
+            error,
+            error_len,
+        )
     })
+}
+
+/// Builds a machine from the printer.cfg file at `path` (with its includes and SAVE_CONFIG block, as the
+/// `jointspace` command line reads it), so that a config error names the owner's file, line and column; otherwise
+/// as [`jointspace_machine_new`].
+///
+/// # Safety
+/// `path` is a NUL-terminated string; `error` holds `error_len` bytes (or is null).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_machine_new_from_file(
+    path: *const c_char,
+    fused_arithmetic: c_int,
+    error: *mut c_char,
+    error_len: usize,
+) -> *mut Machine {
+    guarded(ptr::null_mut(), (error, error_len), || {
+        if path.is_null() {
+            write_message("no config file", error, error_len);
+            return ptr::null_mut();
+        }
+        // SAFETY: per the contract, a NUL-terminated string.
+        let path = unsafe { CStr::from_ptr(path) }.to_string_lossy();
+        let machine =
+            Machine::from_config_file(std::path::Path::new(path.as_ref()), fused_arithmetic != 0);
+        boxed_machine(machine, error, error_len)
+    })
+}
+
+/// The machine on the heap for the caller, or null with the reason in `error`.
+fn boxed_machine(
+    machine: Result<Machine, String>,
+    error: *mut c_char,
+    error_len: usize,
+) -> *mut Machine {
+    match machine {
+        Ok(m) => Box::into_raw(Box::new(m)),
+        Err(e) => {
+            write_message(&e, error, error_len);
+            ptr::null_mut()
+        }
+    }
 }
 
 /// Frees a machine (null is ignored).

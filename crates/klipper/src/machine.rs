@@ -5,6 +5,7 @@
 
 use std::f64::consts::PI;
 use std::ffi::{CStr, CString};
+use std::path::Path;
 
 use calibrate::scara::{Pattern, PatternOptions};
 use config::MachineConfig;
@@ -57,8 +58,19 @@ pub struct MoveVerdict {
 impl Machine {
     /// Builds the machine from printer.cfg text (only the sections it needs; includes are already resolved).
     pub fn from_config_text(text: &str, fused: bool) -> Result<Machine, String> {
-        let mut config =
+        let config =
             MachineConfig::from_str(text, "printer.cfg").map_err(|e| format!("config: {e}"))?;
+        Machine::from_config(config, fused)
+    }
+
+    /// Builds the machine from the printer.cfg file Klipper was started with (its includes and SAVE_CONFIG block
+    /// read as the `jointspace` command line reads them), so an error names the owner's file, line and column.
+    pub fn from_config_file(path: &Path, fused: bool) -> Result<Machine, String> {
+        let config = MachineConfig::load(path).map_err(|e| format!("config: {e}"))?;
+        Machine::from_config(config, fused)
+    }
+
+    fn from_config(mut config: MachineConfig, fused: bool) -> Result<Machine, String> {
         if let MachineParams::Scara(p) = &mut config.params {
             p.shoulder_limits = Some(within_branch_cut(p.shoulder_limits));
         }

@@ -41,7 +41,18 @@ fn set_up_mistakes_are_named() {
             "[jointspace]\nlibrary: /nonexistent/libjointspace_klipper.so\n",
         )
     });
+    let bad_value = polar_example(dir.path(), "bad-value.cfg", |t| {
+        t.replace("arm_zero_offset: 0\n", "arm_zero_offset: abc\n")
+    });
+    let text = std::fs::read_to_string(&bad_value).expect("config");
+    let line = 1 + text
+        .lines()
+        .position(|l| l.starts_with("arm_zero_offset: abc"))
+        .expect("the line");
+    let place = format!("bad-value.cfg:{line}:18: option 'arm_zero_offset'");
     for host in [KLIPPER, KALICO] {
+        // A value the machine cannot read is named at its place in the owner's file.
+        expect_refusal(hosts, host, &bad_value, dir.path(), &place);
         expect_refusal(
             hosts,
             host,

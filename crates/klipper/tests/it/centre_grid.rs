@@ -218,8 +218,10 @@ fn centre_grid_completes_in_kalico() {
 }
 
 /// Pseudo-random targets beyond the arm's reach, after a few moves, in every mode: Klipper refuses the line naming
-/// its G-code target (batch mode stops there, so whether earlier pieces were queued shows in the library's own
-/// test, `solvers::a_refused_route_is_refused_whole`: the transform asks for the whole route before queuing any).
+/// its G-code target and by how much it is beyond the reach, never a piece or a percentage of one. (Batch mode exits
+/// at the first error without stepping what was queued, so whether earlier pieces were queued cannot be seen here:
+/// `routes::a_refused_route_is_refused_whole` shows the transform's route is refused whole before any piece of it
+/// is handed out.)
 #[test]
 fn a_refused_move_names_its_target() {
     let Some(hosts) = Hosts::get("a_refused_move_names_its_target") else {
@@ -227,13 +229,7 @@ fn a_refused_move_names_its_target() {
     };
     let dir = tempfile::tempdir().expect("temp dir");
     let before = "SET_KINEMATIC_POSITION X=300 Y=0 Z=1\nG90\nG1 X50 Y0.5 F6000\nG1 X20 Y30\n";
-    let mut state = 0x2545_f491_4f6c_dd1d_u64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = xorshift(0x2545_f491_4f6c_dd1d);
     let mut targets = vec![(-400.0, 0.5)];
     for _ in 0..2 {
         let (r, a) = (310.0 + 500.0 * next(), TAU * next());
@@ -247,11 +243,74 @@ fn a_refused_move_names_its_target() {
             &format!("{before}G1 X{x:.3} Y{y:.3}\n"),
         );
         let run = hosts.batch(KLIPPER, true, &cfg, &input, &dir.path().join(mode));
-        let target = format!("Move out of range: X{x:.3} Y{y:.3}");
+        // As written in the file (three decimals).
+        let written = |v: f64| format!("{v:.3}").parse::<f64>().unwrap_or(v);
+        let beyond = written(x).hypot(written(y)) - 300.0;
+        let message = format!(
+            "Move out of range: X{x:.3} Y{y:.3} Z1.000 ({beyond:.3} mm beyond the arm's reach of 300 mm)"
+        );
         assert!(
-            run.log.contains(&target) && !run.log.contains("% of the segment"),
-            "{mode}: no '{target}' without a piece's percentage in the log:\n{}",
+            run.log.contains(&message) && !run.log.contains("% of the segment"),
+            "{mode}: no '{message}' in the log:\n{}",
             tail(&run.log, 20)
         );
+    }
+}
+
+/// Uniform numbers in [0, 1) from `seed` (xorshift64).
+fn xorshift(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// A random sequence of moves near the centre from `seed`: lines ending at, passing by and leaving it at the grid's
+/// offsets, and arcs ending on it, ending at X50 Y0.
+fn random_sequence(seed: u64) -> String {
+    let mut next = xorshift(seed);
+    let mut g = String::from("SET_KINEMATIC_POSITION X=300 Y=0 Z=1\nG90\nG1 X40 Y0 F6000\n");
+    for _ in 0..60 {
+        let deg = 360.0 * next();
+        let d = OFFSETS[(next() * OFFSETS.len() as f64) as usize % OFFSETS.len()];
+        let ((ux, uy), (vx, vy)) = (unit(deg), unit(deg + 90.0));
+        let r = 5.0 + 100.0 * next();
+        match (next() * 4.0) as u32 {
+            0 => g += &line("G1", d * vx, d * vy, ""),
+            1 => {
+                g += &line("G1", r * ux + d * vx, r * uy + d * vy, "");
+                g += &line("G1", -r * ux + d * vx, -r * uy + d * vy, "");
+            }
+            2 => {
+                let ij = format!(" I{:.17} J{:.17}", -0.5 * r * ux, -0.5 * r * uy);
+                g += &line("G1", r * ux, r * uy, "");
+                g += &line("G2", 0.0, 0.0, &ij);
+            }
+            _ => g += &line("G1", r * ux, r * uy, ""),
+        }
+    }
+    g + "G1 X50 Y0\nM400\n"
+}
+
+/// Random sequences of lines and arcs near the centre, one per mode: each run's MCU stream passes the grid's audit.
+#[test]
+fn random_sequences_complete() {
+    let Some(hosts) = Hosts::get("random_sequences_complete") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let runs = [
+        (0x2545_f491_4f6c_dd1d_u64, "exact"),
+        (0x9e37_79b9_7f4a_7c15, "whole-moves"),
+        (0xd1b5_4a32_d192_ed03, "klipper"),
+    ];
+    for (seed, mode) in runs {
+        let cfg = config(dir.path(), &format!("{mode}.cfg"), mode, false);
+        let input = write(dir.path(), &format!("{mode}.gcode"), &random_sequence(seed));
+        let run = hosts.batch(KLIPPER, true, &cfg, &input, &dir.path().join(mode));
+        audit_grid(&format!("random {mode} (seed {seed:x})"), &run, mode);
     }
 }

@@ -36,6 +36,7 @@ pub mod converter;
 pub mod correction;
 pub mod error;
 pub mod format;
+pub mod limits;
 pub mod options;
 pub mod path;
 pub mod segment;
@@ -48,9 +49,10 @@ pub use axes::AxisMap;
 pub use converter::{ConvertStats, Converter, InputLine};
 pub use correction::CentreCorrection;
 pub use error::ConvertError;
+pub use limits::AxisLimits;
 pub use options::{
-    AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Firmware, ModeState, Segmentation,
-    Target,
+    AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Firmware, ModeState, MotorLimit,
+    Segmentation, Target,
 };
 pub use verify::{SegmentDeviation, VerifyError, VerifyReport, verify, verify_segments};
 

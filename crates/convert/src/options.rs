@@ -174,6 +174,18 @@ impl Default for Decimals {
     }
 }
 
+/// A motor's speed and acceleration limits (the config's `max_angular_velocity` / `max_joint_velocity` and
+/// `max_step_rate` × step distance; `max_angular_accel` / `max_joint_accel`), in the motor's unit per second.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotorLimit {
+    /// The motor's index in the machine's [`kinematics::Kinematics::motors`].
+    pub motor: usize,
+    /// mm/s or rad/s.
+    pub max_velocity: Option<f64>,
+    /// mm/s² or rad/s² (not applied: the firmware plans acceleration on the written feeds itself).
+    pub max_accel: Option<f64>,
+}
+
 /// All options of a conversion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConvertOptions {
@@ -198,6 +210,9 @@ pub struct ConvertOptions {
     pub home: Option<[f64; 3]>,
     /// The firmware that reads the output (verification replays its mode lines this way).
     pub firmware: Firmware,
+    /// Motor speed limits: every written segment takes at least each limited motor's travel over its
+    /// speed limit (see [`crate::limits`]). Empty: segments take their Cartesian time.
+    pub motor_limits: Vec<MotorLimit>,
 }
 
 impl Default for ConvertOptions {
@@ -215,6 +230,7 @@ impl Default for ConvertOptions {
             translate: [0.0, 0.0],
             home: None,
             firmware: Firmware::default(),
+            motor_limits: Vec::new(),
         }
     }
 }

@@ -2,7 +2,8 @@
 //! mis-centred polar bed.
 //!
 //! - [`Converter`]: streaming conversion of interpreted commands into motor-space lines with a bounded
-//!   Cartesian chord error ([`Segmentation::Adaptive`]), Cartesian-time feed ([`FeedMode`]), exact extrusion
+//!   Cartesian chord error ([`Segmentation::Adaptive`]), Cartesian-time feed ([`FeedMode`]), slowed where a
+//!   motor speed limit needs it ([`MotorLimit`], [`limits`]), exact extrusion
 //!   ([`Extrusion`]) and unwrapped angles; [`convert_gcode`] drives it from G-code text.
 //! - [`AxisMap`]: what the output axes are (two motors of a [`kinematics::Kinematics`], or corrected
 //!   Cartesian XY); [`CentreCorrection`] builds the maps for an offset polar machine.

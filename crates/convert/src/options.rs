@@ -24,10 +24,11 @@ pub enum AngleUnit {
     Radians,
 }
 
-/// How the output's `F` words make each segment take its Cartesian time.
+/// How the output's `F` words make each segment take its time: its Cartesian time, or longer where a motor speed
+/// limit needs it ([`ConvertOptions::motor_limits`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FeedMode {
-    /// `F` in output-axis units per minute: `F = motor-space length of the segment / Cartesian time`, where the
+    /// `F` in output-axis units per minute: `F = motor-space length of the segment / segment time`, where the
     /// motor-space length is `√(Δa² + Δb² + Δz²)` in written units (an angle in degrees or radians counts as
     /// that many mm). Extrude-only moves keep the requested E speed. For firmware that interprets F in its
     /// own axis units (Marlin POLAR/SCARA with segmentation off, RRF with feed in joint units).

@@ -102,6 +102,31 @@ const NEAR_CENTRE: &[u8] =
     b"G1 X-30 Y0.000001 F12000\nG1 X30 Y0.000001\nG1 X30 Y0.001\nG1 X-30 Y0.001\n\
 G1 X-30 Y0.1\nG1 X30 Y0.1\nG1 X20 Y20 Z0.2\nG1 X-20 Y-19.999 E3 F3000\nG1 X-19.9 Y20 E2\n";
 
+/// The unlimited conversion of [`NEAR_CENTRE`] verified against a bed limited to 5 rad/s: the lines beside the
+/// centre are over it.
+#[test]
+fn verification_finds_lines_over_a_limit() {
+    let polar = machines::polar();
+    let bed = motor(polar.as_ref(), "stepper_bed");
+    let map = AxisMap::motors(polar, Target::Cylindrical).expect("polar map");
+    let (out, _, free) = round_trip(&map, &homed(), NEAR_CENTRE);
+    assert_eq!((free.over_limit, free.max_limit_use), (0, 0.0));
+    let limited = ConvertOptions {
+        motor_limits: vec![limit(bed, 5.0)],
+        ..homed()
+    };
+    let commands = convert::read_commands(NEAR_CENTRE, "near.gcode").expect("input parses");
+    let r = convert::verify(&map, &limited, &commands, out.as_bytes()).expect("output readable");
+    let replayed = replay(&out, [1.0, 1.0 / DEG], [f64::INFINITY, 5.0]);
+    assert!(r.over_limit > 0, "{r:?}");
+    // The worst line's share of the limit, as the independent replay measures it.
+    assert!(
+        (r.max_limit_use / replayed.worst_share[1] - 1.0).abs() < 1e-6,
+        "{r:?}"
+    );
+    assert!(r.max_limit_use > 100.0);
+}
+
 fn check_near_centre(feed: FeedMode, limited: bool) -> (Replayed, VerifyReport) {
     let polar = machines::polar();
     let bed = motor(polar.as_ref(), "stepper_bed");

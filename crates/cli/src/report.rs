@@ -127,9 +127,9 @@ pub fn centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
 
 /// The verification figures in one line.
 pub fn verify(r: &convert::VerifyReport) -> String {
-    format!(
+    let mut text = format!(
         "max deviation {:.4} mm at ({:.2}, {:.2}), RMS {:.5} mm over {} segments; filament {:.5} → {:.5} mm; \
-         time {:.1} → {:.1} s ({:.1} s turning at the centre)",
+         time {:.1} s Cartesian → {:.1} s on the machine from the written feeds ({:.1} s turning at the centre)",
         r.max_deviation,
         r.worst_point[0],
         r.worst_point[1],
@@ -140,7 +140,19 @@ pub fn verify(r: &convert::VerifyReport) -> String {
         r.time_in,
         r.time_out,
         r.flip_time
-    )
+    );
+    if r.limited_time > 0.0 || r.max_limit_use > 0.0 {
+        let longer = r.time_out - r.flip_time - r.time_in;
+        let _ = write!(
+            text,
+            "; motor limits: {longer:+.1} s ({:+.1} %) against the Cartesian time, {:.1} s in lines at a limit, \
+             fastest line at {:.1} % of its limit",
+            100.0 * longer / r.time_in.max(f64::MIN_POSITIVE),
+            r.limited_time,
+            100.0 * r.max_limit_use
+        );
+    }
+    text
 }
 
 /// An identified SCARA geometry: each parameter with its uncertainty, the poses' condition, and which parameter

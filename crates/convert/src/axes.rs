@@ -184,6 +184,15 @@ impl AxisMap {
         self.machine().rotation_centre()
     }
 
+    /// The machine's motors the written axes drive: the two planar axes (none for corrected Cartesian
+    /// output, which the firmware's own kinematics turn into motor moves) and Z.
+    pub fn written_motors(&self) -> ([Option<usize>; 2], Option<usize>) {
+        match self {
+            AxisMap::Motors { planar, z, .. } => (planar.map(Some), *z),
+            AxisMap::Corrected { z, .. } => ([None; 2], *z),
+        }
+    }
+
     /// The machine that moves.
     pub fn machine(&self) -> &dyn Kinematics {
         match self {

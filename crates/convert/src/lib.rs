@@ -2,7 +2,8 @@
 //! mis-centred polar bed.
 //!
 //! - [`Converter`]: streaming conversion of interpreted commands into motor-space lines with a bounded
-//!   Cartesian chord error ([`Segmentation::Adaptive`]), Cartesian-time feed ([`FeedMode`]), exact extrusion
+//!   Cartesian chord error ([`Segmentation::Adaptive`]), Cartesian-time feed ([`FeedMode`]), slowed where a
+//!   motor speed limit needs it ([`MotorLimit`], [`limits`]), exact extrusion
 //!   ([`Extrusion`]) and unwrapped angles; [`convert_gcode`] drives it from G-code text.
 //! - [`AxisMap`]: what the output axes are (two motors of a [`kinematics::Kinematics`], or corrected
 //!   Cartesian XY); [`CentreCorrection`] builds the maps for an offset polar machine.
@@ -36,6 +37,7 @@ pub mod converter;
 pub mod correction;
 pub mod error;
 pub mod format;
+pub mod limits;
 pub mod options;
 pub mod path;
 pub mod segment;
@@ -48,9 +50,10 @@ pub use axes::AxisMap;
 pub use converter::{ConvertStats, Converter, InputLine};
 pub use correction::CentreCorrection;
 pub use error::ConvertError;
+pub use limits::AxisLimits;
 pub use options::{
-    AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Firmware, ModeState, Segmentation,
-    Target,
+    AngleUnit, ConvertOptions, Decimals, Extrusion, FeedMode, Firmware, ModeState, MotorLimit,
+    Segmentation, Target,
 };
 pub use verify::{SegmentDeviation, VerifyError, VerifyReport, verify, verify_segments};
 

@@ -24,10 +24,11 @@ pub enum AngleUnit {
     Radians,
 }
 
-/// How the output's `F` words make each segment take its Cartesian time.
+/// How the output's `F` words make each segment take its time: its Cartesian time, or longer where a motor speed
+/// limit needs it ([`ConvertOptions::motor_limits`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FeedMode {
-    /// `F` in output-axis units per minute: `F = motor-space length of the segment / Cartesian time`, where the
+    /// `F` in output-axis units per minute: `F = motor-space length of the segment / segment time`, where the
     /// motor-space length is `√(Δa² + Δb² + Δz²)` in written units (an angle in degrees or radians counts as
     /// that many mm). Extrude-only moves keep the requested E speed. For firmware that interprets F in its
     /// own axis units (Marlin POLAR/SCARA with segmentation off, RRF with feed in joint units).
@@ -174,6 +175,18 @@ impl Default for Decimals {
     }
 }
 
+/// A motor's speed and acceleration limits (the config's `max_angular_velocity` / `max_joint_velocity` and
+/// `max_step_rate` × step distance; `max_angular_accel` / `max_joint_accel`), in the motor's unit per second.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotorLimit {
+    /// The motor's index in the machine's [`kinematics::Kinematics::motors`].
+    pub motor: usize,
+    /// mm/s or rad/s.
+    pub max_velocity: Option<f64>,
+    /// mm/s² or rad/s² (not applied: the firmware plans acceleration on the written feeds itself).
+    pub max_accel: Option<f64>,
+}
+
 /// All options of a conversion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConvertOptions {
@@ -198,6 +211,9 @@ pub struct ConvertOptions {
     pub home: Option<[f64; 3]>,
     /// The firmware that reads the output (verification replays its mode lines this way).
     pub firmware: Firmware,
+    /// Motor speed limits: every written segment takes at least each limited motor's travel over its
+    /// speed limit (see [`crate::limits`]). Empty: segments take their Cartesian time.
+    pub motor_limits: Vec<MotorLimit>,
 }
 
 impl Default for ConvertOptions {
@@ -215,6 +231,7 @@ impl Default for ConvertOptions {
             translate: [0.0, 0.0],
             home: None,
             firmware: Firmware::default(),
+            motor_limits: Vec::new(),
         }
     }
 }

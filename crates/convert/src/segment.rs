@@ -145,6 +145,8 @@ pub fn cut_adaptive(
     let mut h = longest;
     // A piece that passed (and its end point), kept while a longer one is tried.
     let mut in_hand: Option<(Breakpoint, [f64; 3])> = None;
+    // A trial of everything left has failed (no more taking a sliver with the piece before it).
+    let mut rest_failed = false;
     // Trials on polar axes step the angle from the previous end (no atan2 per trial); the first piece of
     // the move is written with the closed form, so rounding does not accumulate from move to move.
     let settle = |piece: Breakpoint, end: [f64; 3], from: f64| -> Result<Breakpoint, CutError> {
@@ -156,8 +158,10 @@ pub fn cut_adaptive(
     };
     while s0 < s_end {
         let mut s1 = s0 + last_two(s_end - s0, h.min(longest));
-        // Do not leave a sliver at the end.
-        if s1 >= s_end || (s_end - s1) * length < 1e-6 {
+        // Do not leave a sliver at the end, unless the whole rest has failed already: a failed piece must get
+        // shorter, or a move ending where the map turns fast (a line passing a µm from the polar centre)
+        // would try the same piece forever.
+        if s1 >= s_end || ((s_end - s1) * length < 1e-6 && !rest_failed) {
             s1 = s_end;
         }
         let piece = s1 - s0;
@@ -188,6 +192,7 @@ pub fn cut_adaptive(
                 (s0, p0, a0, in_hand) = (s1, p1, passed.axes, None);
             }
             _ => {
+                rest_failed |= s1 == s_end;
                 h = piece * shrink(load);
                 if let Some((kept, kept_point)) = in_hand.filter(|k| s0 + h <= k.0.s) {
                     // The longer trial failed short of where the kept piece ends: take that one.

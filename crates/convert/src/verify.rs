@@ -2,8 +2,10 @@
 //! mode line the way the chosen firmware ([`ConvertOptions::firmware`]) does, replays the motor-space lines
 //! through forward kinematics, interpolating linearly in motor space as firmware does, and measures the
 //! nozzle's distance from the intended Cartesian path densely along every written segment; also totals
-//! extrusion and print time at the requested speeds on both sides. It knows nothing of how the converter
-//! meant the lines: a stray `G91` or `M82` in the output shows as a wrong path or a wrong extrusion.
+//! extrusion and print time (the input's Cartesian time at the requested speeds; the output's time as the
+//! firmware runs its written feeds) and checks every written line against the motors' speed limits. It
+//! knows nothing of how the converter meant the lines: a stray `G91` or `M82` in the output shows as a
+//! wrong path or a wrong extrusion.
 //!
 //! Matching: the converter writes every segment's end points on the intended path (to rounding), and the
 //! last segment of a move at the move's end. Each written segment is compared with the first input move,
@@ -19,6 +21,7 @@ use gcode::{CommandWord, Line, Reader};
 use kinematics::MotorUnit;
 
 use crate::axes::AxisMap;
+use crate::limits::AxisLimits;
 use crate::options::{AngleUnit, ConvertOptions, Firmware, ModeState};
 use crate::path::Path;
 
@@ -26,6 +29,8 @@ use crate::path::Path;
 pub const SAMPLES_PER_SEGMENT: usize = 32;
 /// How many input moves ahead a written segment may belong to.
 const LOOKAHEAD: usize = 64;
+/// A written line within this share of a motor's speed limit runs at that limit (feeds are written to 1e-7).
+const LIMIT_SLACK: f64 = 1e-6;
 
 /// What verification found.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -44,11 +49,20 @@ pub struct VerifyReport {
     /// Net extrusion (mm of filament) of the input and of the output.
     pub extrusion_in: f64,
     pub extrusion_out: f64,
-    /// Print time (s) at the requested speeds: input Cartesian, output as firmware times the written lines.
+    /// Print time (s): the input's Cartesian time at the requested speeds, and the time the machine takes:
+    /// the written lines timed from their written feeds as the firmware reads them (`F` over the written axes'
+    /// combined distance, or `G93` inverse time).
     pub time_in: f64,
     pub time_out: f64,
     /// Part of `time_out` spent rotating in place at the polar centre.
     pub flip_time: f64,
+    /// Part of `time_out` (turns at the centre excluded) in lines that run a motor at its speed limit
+    /// ([`ConvertOptions::motor_limits`]): where the machine may take longer than the Cartesian time.
+    pub limited_time: f64,
+    /// Written lines that drive a motor faster than its limit allows (more than 1e-6 over).
+    pub over_limit: u64,
+    /// The largest motor speed of any written line as a share of that motor's limit (0 without limits).
+    pub max_limit_use: f64,
 }
 
 /// An output line verification could not read.
@@ -103,6 +117,7 @@ pub fn verify_segments<'a>(
         move_finished: false,
     };
     let mut reader = OutputReader::new(map, options, options.firmware);
+    let limits = AxisLimits::new(map, &options.motor_limits);
     let mut lines = Reader::new(output, "<output>");
     let mut squares = 0.0;
     while let Some(line) = lines.next_line() {
@@ -121,6 +136,7 @@ pub fn verify_segments<'a>(
         };
         report.segments += 1;
         report.time_out += segment.time;
+        let at_limit = limit_use(&limits, &segment, &mut report);
         let (Ok(start), Ok(end)) = (
             map.from_axes(segment.from, segment.z[0]),
             map.from_axes(segment.to, segment.z[1]),
@@ -128,11 +144,16 @@ pub fn verify_segments<'a>(
             report.unmatched += 1;
             continue;
         };
+        let turn =
+            segment.from != segment.to && (start[0] - end[0]).hypot(start[1] - end[1]) < 1e-5;
+        if at_limit && !turn {
+            report.limited_time += segment.time;
+        }
         if segment.from == segment.to {
             // No planar motion (Z or E only): no XY deviation to measure.
             continue;
         }
-        if (start[0] - end[0]).hypot(start[1] - end[1]) < 1e-5 {
+        if turn {
             report.flip_time += segment.time;
         }
         let Some(path) = moves.path_of(start, end, &mut report) else {
@@ -155,6 +176,29 @@ pub fn verify_segments<'a>(
     report.time_in = moves.moves.time;
     report.extrusion_out = reader.extrusion;
     Ok(report)
+}
+
+/// Records how fast a written segment drives its limited motors (travel over the segment's time, against each
+/// motor's limit); returns whether it runs one at its limit.
+fn limit_use(limits: &AxisLimits, segment: &WrittenSegment, report: &mut VerifyReport) -> bool {
+    if !limits.any() {
+        return false;
+    }
+    let travel = [
+        segment.to[0] - segment.from[0],
+        segment.to[1] - segment.from[1],
+        segment.z[1] - segment.z[0],
+    ];
+    let least = limits.min_time(travel);
+    if least <= 0.0 {
+        return false;
+    }
+    let share = least / segment.time;
+    report.max_limit_use = report.max_limit_use.max(share);
+    if share > 1.0 + LIMIT_SLACK {
+        report.over_limit += 1;
+    }
+    share >= 1.0 - LIMIT_SLACK
 }
 
 /// Samples one written segment densely; returns the sum of squared deviations and the largest.

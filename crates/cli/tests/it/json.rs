@@ -209,3 +209,94 @@ fn simulate_names_the_file_of_a_planning_error() {
         "{stderr}"
     );
 }
+
+/// The fastest written speed (written units per second) of X (the arm, mm) and Y (the bed, degrees) over the
+/// timed `G1` lines of converted G-code (absolute axes, F in mm/min of the combined X Y Z distance).
+fn fastest_axes(written: &str) -> [f64; 2] {
+    let (mut pos, mut feed, mut fastest) = ([0.0f64; 3], 0.0f64, [0.0f64; 2]);
+    for line in written.lines() {
+        let code = line.split(';').next().unwrap_or("");
+        let mut words = code.split_ascii_whitespace();
+        let head = words.next();
+        let before = pos;
+        for w in words {
+            let value: f64 = w[1..].parse().expect("a number");
+            match &w[..1] {
+                "X" => pos[0] = value,
+                "Y" => pos[1] = value,
+                "Z" => pos[2] = value,
+                "F" => feed = value,
+                _ => {}
+            }
+        }
+        if head != Some("G1") {
+            continue;
+        }
+        let d = [0, 1, 2].map(|i| pos[i] - before[i]);
+        let length = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if length > 0.0 {
+            let time = 60.0 * length / feed;
+            for i in 0..2 {
+                fastest[i] = fastest[i].max(d[i].abs() / time);
+            }
+        }
+    }
+    fastest
+}
+
+#[test]
+fn convert_keeps_the_configs_motor_speed_limits() {
+    let (dir, _) = scratch();
+    let cfg = std::fs::read_to_string(example_machine("polar")).expect("config");
+    // The bed at 5 rad/s, the arm at 8000 steps/s (80 steps/mm: 100 mm/s).
+    let cfg = cfg
+        .replace("[printer]\n", "[printer]\nmax_angular_velocity: 5\n")
+        .replace(
+            "position_max: 150\n",
+            "position_max: 150\nmax_step_rate: 8000\n",
+        );
+    std::fs::write(dir.path().join("limited.cfg"), cfg).expect("config");
+    // A travel 1 µm beside the centre, one 1 µm … 0.1 mm away, and printing lines through the middle.
+    std::fs::write(
+        dir.path().join("near.gcode"),
+        "G28\nG1 X-30 Y0.000001 Z1 F12000\nG1 X30 Y0.001\nG1 X-30 Y0.1\nG1 X30 Y-5 E2 F6000\n",
+    )
+    .expect("input");
+    let args = [
+        "convert",
+        "-c",
+        "limited.cfg",
+        "near.gcode",
+        "-o",
+        "out.gcode",
+        "--verify",
+        "--json",
+    ];
+    let output = jointspace(dir.path(), &args);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let json = json_of(&output);
+    assert!(
+        json["limited_segments"].as_u64().is_some_and(|n| n > 0),
+        "{json}"
+    );
+    let v = &json["verification"];
+    assert_eq!(v["over_limit_segments"], 0, "{json}");
+    let limited = v["motor_limited_time_s"].as_f64().expect("a time");
+    let (time_in, time_out) = (v["time_in_s"].as_f64(), v["time_out_s"].as_f64());
+    assert!(time_out > time_in && limited > 0.0, "{json}");
+    let written = std::fs::read_to_string(dir.path().join("out.gcode")).expect("output");
+    let [arm, bed] = fastest_axes(&written);
+    let bed = bed.to_radians();
+    assert!(
+        arm <= 100.0 * 1.001 && bed <= 5.0 * 1.001,
+        "arm {arm} mm/s, bed {bed} rad/s"
+    );
+    assert!(
+        arm >= 99.9 || bed >= 4.995,
+        "no limit binds: arm {arm} mm/s, bed {bed} rad/s"
+    );
+}

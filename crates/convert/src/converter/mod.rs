@@ -29,6 +29,7 @@ use kinematics::{MotorUnit, ReachError, SegmentError};
 use crate::axes::AxisMap;
 use crate::error::ConvertError;
 use crate::format::{OutBuf, to_units};
+use crate::limits::AxisLimits;
 use crate::options::{ConvertOptions, Extrusion, FeedMode, Segmentation};
 use crate::path::Path;
 use crate::segment::{Breakpoint, Budget, CutError, cut_adaptive, cut_fixed};
@@ -40,7 +41,12 @@ use checks::{
     check_feed, check_magnitudes, is_consumed_mode, is_mode_command, passes_through, validate, xyz,
 };
 
-/// Distance (mm) kept from the exact polar centre, where the bed angle is undefined.
+/// Distance (mm) kept from the exact polar centre, where the bed angle is undefined: where a move through
+/// the centre stops and turns in place. Not the machine's centre tolerance
+/// ([`kinematics::RotationCentre::tolerance`], which decides which paths meet the centre, in
+/// [`Converter::centre_snap`]): the turn sweeps a half circle of this radius about the centre, so this much is
+/// a path deviation, and the kinematics' tolerance (up to 5 µm, half an arm step) would use the whole default
+/// `--tolerance` of 5 µm, and more than a finer one. At 0.1 µm it stays far below any tolerance.
 const CENTRE_GAP: f64 = 1e-7;
 /// Share of the tolerance the probe check may use (the rest covers probe sampling and rounding).
 const PROBE_MARGIN: f64 = 0.9;
@@ -56,6 +62,8 @@ pub struct ConvertStats {
     pub flips: u64,
     /// Moves with an unknown start written as a single `G0`.
     pub positioning_moves: u64,
+    /// Motion lines (segments and turns) slowed below their Cartesian time's feed by a motor speed limit.
+    pub limited: u64,
 }
 
 /// One input line as the converter needs it.
@@ -103,6 +111,8 @@ pub struct Converter<W: Write> {
     axis_decimals: [u8; 2],
     rotary: [bool; 2],
     budget: Budget,
+    /// The written axes' speed limits.
+    limits: AxisLimits,
     started: bool,
     stats: ConvertStats,
     /// Which of the input's X Y Z are known (set by the input, or by the homing pose).
@@ -136,6 +146,7 @@ impl<W: Write> Converter<W> {
             ));
         }
         let home_known = options.home.is_some();
+        let limits = AxisLimits::new(&map, &options.motor_limits);
         Ok(Converter {
             map,
             options,
@@ -150,6 +161,7 @@ impl<W: Write> Converter<W> {
             axis_decimals,
             rotary,
             budget,
+            limits,
             started: false,
             stats: ConvertStats::default(),
             known: [home_known; 3],
@@ -382,14 +394,9 @@ impl<W: Write> Converter<W> {
         }
         // A line within the machine's centre tolerance (and the conversion's) meets the centre, as the planner
         // plans it: it is converted through the centre, where the bed turns in place.
-        let Some(centre) = self.map.centre() else {
+        let Some((c, snap)) = self.centre_snap() else {
             return Ok(None);
         };
-        let snap = match self.options.segmentation {
-            Segmentation::Adaptive { tolerance } => centre.tolerance.min(tolerance),
-            Segmentation::Fixed { .. } => centre.tolerance,
-        };
-        let c = centre.point;
         let d = [to[0] - from[0], to[1] - from[1]];
         let len2 = d[0] * d[0] + d[1] * d[1];
         let t = (((c[0] - from[0]) * d[0] + (c[1] - from[1]) * d[1]) / len2).clamp(0.0, 1.0);
@@ -398,9 +405,20 @@ impl<W: Write> Converter<W> {
         Ok((miss <= snap).then_some(t))
     }
 
+    /// The polar centre and the distance within which a path meets it: the machine's centre tolerance (as the
+    /// planner and the plug-in use it), at most the conversion's tolerance.
+    fn centre_snap(&self) -> Option<([f64; 2], f64)> {
+        let centre = self.map.centre()?;
+        let snap = match self.options.segmentation {
+            Segmentation::Adaptive { tolerance } => centre.tolerance.min(tolerance),
+            Segmentation::Fixed { .. } => centre.tolerance,
+        };
+        Some((centre.point, snap))
+    }
+
     fn arc_meets_centre(&self, path: &Path) -> bool {
-        match self.map.centre() {
-            Some(c) => path.distance_xy(c.point, 0.0, 1.0) <= CENTRE_GAP,
+        match self.centre_snap() {
+            Some((c, snap)) => path.distance_xy(c, 0.0, 1.0) <= snap,
             None => false,
         }
     }

@@ -150,8 +150,10 @@ impl<W: Write> Converter<W> {
         }
     }
 
-    /// Writes one `G1` to the given axes / Z / E that takes `time` seconds; `feed` (mm/s) is the E speed for
-    /// extrude-only lines. Returns false when nothing changes after rounding (nothing written).
+    /// Writes one `G1` to the given axes / Z / E that takes `time` seconds (its Cartesian time), or longer
+    /// where a motor speed limit needs it: the written travel of every limited axis over its limit; `feed`
+    /// (mm/s) is the E speed for extrude-only lines. The one place every motion line's `F` is computed,
+    /// whatever the feed mode. Returns false when nothing changes after rounding (nothing written).
     pub(super) fn write_motion(
         &mut self,
         axes: [f64; 2],
@@ -171,6 +173,18 @@ impl<W: Write> Converter<W> {
             0.0
         };
         let motor_length = (moved[0] * moved[0] + moved[1] * moved[1] + dz * dz).sqrt();
+        let travel = [
+            moved[0] / self.axis_scale[0],
+            moved[1] / self.axis_scale[1],
+            dz,
+        ];
+        let least = self.limits.min_time(travel);
+        let time = if least > time {
+            self.stats.limited += 1;
+            least
+        } else {
+            time
+        };
         let extrudes = e_units != self.written.e;
         if motor_length == 0.0 && !extrudes && self.written.z_known {
             return Ok(false);

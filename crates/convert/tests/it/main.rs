@@ -5,5 +5,6 @@ mod cases;
 mod common;
 mod corpus;
 mod correction;
+mod limits;
 mod machines;
 mod modes;

@@ -28,3 +28,18 @@ pub fn load_machine(path: &Path) -> miette::Result<Machine> {
     Machine::from_config(config, &path.display().to_string())
         .map_err(|e| miette::miette!("{}: {e}", path.display()))
 }
+
+/// The motors' speed limits as the planner applies them (angular and joint limits, step rates), for the converter:
+/// every written segment takes at least each limited motor's travel over its limit.
+pub fn convert_limits(setup: &motion::machine::MachineSetup) -> Vec<convert::MotorLimit> {
+    setup
+        .planner
+        .kinematic_limits
+        .iter()
+        .map(|l| convert::MotorLimit {
+            motor: l.motor,
+            max_velocity: l.max_velocity,
+            max_accel: l.max_accel,
+        })
+        .collect()
+}

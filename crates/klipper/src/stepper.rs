@@ -195,7 +195,7 @@ unsafe extern "C" fn calc_position(
     // A panic must not unwind into Klipper's C code, and Klipper must never read NaN: the motor then stays where it
     // was commanded. (A non-finite move reached NaN through `radial_side_angle`, whose `distance2 >= NEAR²` test
     // is false for NaN; found by the `klipper_abi` fuzz target.)
-    crate::guarded(commanded, crate::NO_BUFFER, || {
+    crate::boundary::guarded(commanded, crate::boundary::NO_BUFFER, || {
         let position = stepper
             .solver
             .position(m, move_time, commanded, stepper.fused);

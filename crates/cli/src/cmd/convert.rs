@@ -144,17 +144,7 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
     options.home = machine.setup.home_position;
     // The motors' speed limits as the planner applies them (angular/joint limits, step rates): every written
     // segment takes at least each limited motor's travel over its limit.
-    options.motor_limits = machine
-        .setup
-        .planner
-        .kinematic_limits
-        .iter()
-        .map(|l| convert::MotorLimit {
-            motor: l.motor,
-            max_velocity: l.max_velocity,
-            max_accel: l.max_accel,
-        })
-        .collect();
+    options.motor_limits = crate::machine::convert_limits(&machine.setup);
     let map = axis_map(&args, &machine.config.params)?;
     if args.verify && output::is_stdio(&args.file) {
         return Err(

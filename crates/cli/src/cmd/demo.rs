@@ -103,7 +103,15 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     let figures = maps::map_and_draw(&machine.config.params, 2.0, &dir, "workspace")?;
     section += &report::workspace(&figures);
     if let Some(target) = example.convert_to {
-        section += &demo_conversion(&machine.config, home, &gcode, &print_path, &dir, target)?;
+        let limits = crate::machine::convert_limits(&machine.setup);
+        section += &demo_conversion(
+            &machine.config,
+            (home, limits),
+            &gcode,
+            &print_path,
+            &dir,
+            target,
+        )?;
     }
     let _ = writeln!(section);
     Ok(section)
@@ -112,7 +120,7 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
 /// Convert the test print for firmware without the machine's kinematics, and verify the result.
 fn demo_conversion(
     machine: &config::MachineConfig,
-    home: Option<[f64; 3]>,
+    (home, motor_limits): (Option<[f64; 3]>, Vec<convert::MotorLimit>),
     gcode: &str,
     print_path: &Path,
     dir: &Path,
@@ -125,6 +133,7 @@ fn demo_conversion(
     let options = convert::ConvertOptions {
         target,
         home,
+        motor_limits,
         ..Default::default()
     };
     let name = print_path.display().to_string();

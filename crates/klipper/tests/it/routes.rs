@@ -4,18 +4,15 @@
 //! ends on the line's end (or on the centre, when the end lies within the tolerance), and a line that cannot be
 //! made is refused whole, before any piece is handed out, with a reason in the owner's terms.
 
-use std::ffi::{CStr, c_char};
-
-use jointspace_klipper::jointspace_move_waypoints;
 use proptest::prelude::*;
 
-use crate::solvers::{Owned, machine};
+use crate::solvers::{Owned, machine, waypoints_with_reason};
 
 /// The bundled polar example: arm 0.0125 mm a step, so the centre's tolerance is 0.005 mm; the arm reaches 150 mm.
 const TOLERANCE: f64 = 0.005;
 const REACH: f64 = 150.0;
 
-/// (rc, points as (x, y, fraction), reason).
+/// (rc, points as (x, y, fraction), reason) of the line at Z1, 100 mm/s, 3000 mm/s².
 fn route(
     m: &Owned,
     start: [f64; 2],
@@ -23,37 +20,8 @@ fn route(
     bed_angle: f64,
     cut_spans: bool,
 ) -> (i32, Vec<[f64; 3]>, String) {
-    let mut out = vec![0.0; 3 * 4096];
-    let mut error = [0 as c_char; 256];
-    // SAFETY: a live machine, 4096 waypoint slots, a 256-byte buffer.
-    let rc = unsafe {
-        jointspace_move_waypoints(
-            m.0,
-            start[0],
-            start[1],
-            1.0,
-            end[0],
-            end[1],
-            1.0,
-            100.0,
-            3000.0,
-            bed_angle,
-            i32::from(cut_spans),
-            out.as_mut_ptr(),
-            4096,
-            error.as_mut_ptr(),
-            error.len(),
-        )
-    };
-    let points = out
-        .chunks(3)
-        .take(usize::try_from(rc).unwrap_or(0))
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
-    let reason = unsafe { CStr::from_ptr(error.as_ptr()) }
-        .to_string_lossy()
-        .into_owned();
-    (rc, points, reason)
+    let ends = [[start[0], start[1], 1.0], [end[0], end[1], 1.0]];
+    waypoints_with_reason(m, ends, [100.0, 3000.0], bed_angle, cut_spans)
 }
 
 /// Distance from the origin to the segment a → b.

@@ -321,7 +321,8 @@ fn check(
     (rc, limits, reason(&error))
 }
 
-/// `jointspace_move_waypoints` (at most 256): the return code and the `(x, y, fraction)` triples written.
+/// `jointspace_move_waypoints` (at most 256), cut at span boundaries: the return code and the `(x, y, fraction)`
+/// triples written.
 fn waypoints(
     m: &Owned,
     start: [f64; 3],
@@ -330,9 +331,23 @@ fn waypoints(
     accel: f64,
     bed: f64,
 ) -> (i32, Vec<[f64; 3]>) {
-    let mut out = vec![0.0; 3 * 256];
+    let (rc, points, _) = waypoints_with_reason(m, [start, end], [speed, accel], bed, true);
+    (rc, points)
+}
+
+/// `jointspace_move_waypoints` (at most 4096) of the move `ends[0] → ends[1]` at `[speed, accel]`: the return code,
+/// the `(x, y, fraction)` triples written and the reason of a refusal.
+pub fn waypoints_with_reason(
+    m: &Owned,
+    [start, end]: [[f64; 3]; 2],
+    [speed, accel]: [f64; 2],
+    bed: f64,
+    cut_spans: bool,
+) -> (i32, Vec<[f64; 3]>, String) {
+    let mut out = vec![0.0; 3 * 4096];
+    let mut error = [0 as c_char; 256];
     let rc = without_panic("move_waypoints", || {
-        // SAFETY: a live machine; out holds 3 · 256 doubles.
+        // SAFETY: a live machine; out holds 3 · 4096 doubles, error 256 bytes.
         unsafe {
             jointspace_move_waypoints(
                 m.0,
@@ -345,19 +360,17 @@ fn waypoints(
                 speed,
                 accel,
                 bed,
-                1,
+                i32::from(cut_spans),
                 out.as_mut_ptr(),
-                256,
-                std::ptr::null_mut(),
-                0,
+                4096,
+                error.as_mut_ptr(),
+                error.len(),
             )
         }
     });
     let n = usize::try_from(rc).unwrap_or(0);
-    (
-        rc,
-        out.chunks(3).take(n).map(|c| [c[0], c[1], c[2]]).collect(),
-    )
+    let points = out.chunks(3).take(n).map(|c| [c[0], c[1], c[2]]).collect();
+    (rc, points, reason(&error))
 }
 
 /// A refusal or an answer Klipper can apply: −1 with a reason that is not a caught panic, or flags with caps that

@@ -258,7 +258,7 @@ fn a_refused_move_names_its_target() {
 }
 
 /// Uniform numbers in [0, 1) from `seed` (xorshift64).
-fn xorshift(seed: u64) -> impl FnMut() -> f64 {
+pub fn xorshift(seed: u64) -> impl FnMut() -> f64 {
     let mut state = seed;
     move || {
         state ^= state << 13;

@@ -9,6 +9,7 @@ mod calibration;
 pub mod centre_grid;
 mod centre_scan;
 mod config_errors;
+mod differential;
 mod engine;
 mod examples;
 mod homing;

@@ -1,0 +1,168 @@
+//! `jointspace check`/`run` tell what the printer will do: the same files through the command line and through
+//! Klipper with the plug-in (batch mode, the bundled example machines) give the same print time within 0.1 % and
+//! refuse the same line.
+
+use std::path::{Path, PathBuf};
+
+use crate::centre_grid::xorshift;
+use crate::engine::jointspace;
+use crate::hosts::{Hosts, KLIPPER, Run, tail, workspace_root, write};
+
+/// A bundled example with SET_KINEMATIC_POSITION allowed (the files start from a declared pose: the command line
+/// does not time homing moves).
+fn example(dir: &Path, name: &str) -> PathBuf {
+    let text =
+        std::fs::read_to_string(workspace_root().join(format!("klipper/examples/{name}.cfg")))
+            .expect("example");
+    write(
+        dir,
+        &format!("{name}.cfg"),
+        &(text + "\n[force_move]\nenable_force_move: True\n"),
+    )
+}
+
+/// Random moves over an annulus about (0, 0): `count` targets between radii `r`, at angles (degrees) within
+/// `window` and at most `step` from the one before (so that SCARA segments keep clear of the base circle), and one
+/// beyond reach at move `refused`, if any.
+struct Walk {
+    start: (f64, f64),
+    r: (f64, f64),
+    window: (f64, f64),
+    step: f64,
+}
+
+fn random_moves(seed: u64, walk: &Walk, count: usize, refused: Option<usize>) -> String {
+    let mut next = xorshift(seed);
+    let (x, y) = walk.start;
+    let mut g = format!("SET_KINEMATIC_POSITION X={x} Y={y} Z=1\nG90\nG1 F6000\n");
+    let mut angle = y.atan2(x).to_degrees();
+    for i in 0..count {
+        angle = (angle + walk.step * (2.0 * next() - 1.0)).clamp(walk.window.0, walk.window.1);
+        let (r0, r1) = walk.r;
+        let radius = if Some(i) == refused {
+            r1 + 50.0
+        } else {
+            r0 + (r1 - r0) * next()
+        };
+        let (s, c) = angle.to_radians().sin_cos();
+        g += &format!("G1 X{:.3} Y{:.3}\n", radius * c, radius * s);
+    }
+    g + "M400\n"
+}
+
+const POLAR_WALK: Walk = Walk {
+    start: (300.0, 0.0),
+    r: (5.0, 290.0),
+    window: (-1e9, 1e9),
+    step: 180.0,
+};
+
+fn cli_json(args: &[&str]) -> serde_json::Value {
+    let output = std::process::Command::new(jointspace())
+        .args(args)
+        .output()
+        .expect("jointspace runs");
+    serde_json::from_slice(&output.stdout).unwrap_or_else(|e| {
+        panic!(
+            "{e}: {}{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        )
+    })
+}
+
+fn host_print_time(run: &Run) -> f64 {
+    run.log
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("Exiting (print time ")?
+                .strip_suffix("s)")?
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("no print time in:\n{}", tail(&run.log, 20)))
+}
+
+#[test]
+fn print_time_agrees_with_the_host() {
+    let Some(hosts) = Hosts::get("print_time_agrees_with_the_host") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    // Polar: anywhere on the bed; SCARA: within the annulus it reaches freely, clear of the shoulder's branch cut.
+    let scara_walk = Walk {
+        start: (0.0, 141.421_356_237_309_5),
+        r: (70.0, 190.0),
+        window: (20.0, 160.0),
+        step: 30.0,
+    };
+    let cases = [
+        ("polar", &POLAR_WALK, 0x1234_5678_9abc_def1_u64),
+        ("scara", &scara_walk, 0x0fed_cba9_8765_4321),
+    ];
+    for (name, walk, seed) in cases {
+        let cfg = example(dir.path(), name);
+        let input = write(
+            dir.path(),
+            &format!("{name}.gcode"),
+            &random_moves(seed, walk, 300, None),
+        );
+        let (cfg_s, input_s) = (cfg.to_string_lossy(), input.to_string_lossy());
+        let cli = cli_json(&["run", "-c", &cfg_s, &input_s, "--klipper-batch", "--json"]);
+        let ours = cli["print_time_s"].as_f64().expect("print time");
+        let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join(name));
+        run.expect_success(name);
+        let host = host_print_time(&run);
+        println!("{name}: jointspace run {ours:.4} s, Klipper with the plug-in {host:.3} s");
+        assert!(
+            (ours - host).abs() <= 1e-3 * host,
+            "{name}: {ours} s against the host's {host} s"
+        );
+    }
+}
+
+#[test]
+fn refusals_agree_with_the_host() {
+    let Some(hosts) = Hosts::get("refusals_agree_with_the_host") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cfg = example(dir.path(), "polar");
+    let mut pick = xorshift(0xa5a5_5a5a_1234_4321);
+    for case in 0..3 {
+        let refused = 2 + (pick() * 20.0) as usize;
+        let text = random_moves(0x5151_f00d + case, &POLAR_WALK, 25, Some(refused));
+        let input = write(dir.path(), &format!("refused{case}.gcode"), &text);
+        let input_s = input.to_string_lossy();
+        let check = cli_json(&["check", "-c", &cfg.to_string_lossy(), &input_s, "--json"]);
+        let problems = check["problems"].as_array().expect("problems");
+        let error = problems
+            .iter()
+            .find(|p| p["severity"] == "error")
+            .expect("a refusal");
+        let line = error["line"].as_u64().expect("the refused line") as usize;
+        let target = text.lines().nth(line - 1).expect("that line");
+        assert_eq!(
+            line,
+            4 + refused,
+            "case {case}: check refused line {line} ({target})"
+        );
+        let run = hosts.batch(
+            KLIPPER,
+            false,
+            &cfg,
+            &input,
+            &dir.path().join(format!("refused{case}")),
+        );
+        let (x, y) = target
+            .strip_prefix("G1 ")
+            .and_then(|t| t.split_once(' '))
+            .expect("G1 X.. Y..");
+        let message = format!("Move out of range: {x} {y}");
+        assert!(
+            run.log.contains(&message),
+            "case {case}: no '{message}':\n{}",
+            tail(&run.log, 10)
+        );
+    }
+}

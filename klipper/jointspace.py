@@ -534,7 +534,7 @@ class JointspaceKinematics:
         and a refused move must move nothing)."""
         target = "X%.3f Y%.3f Z%.3f" % tuple(end[:3])
         if reason is not None:
-            raise self.printer.command_error("Move out of range: %s (%s)" % (target, reason))
+            raise self.out_of_range(end, reason)
         if "xy" not in self.homed:
             raise self.printer.command_error("Must home axis first: %s" % (target,))
         if end[2] != start[2] and not self.limit_z[0] <= end[2] <= self.limit_z[1]:
@@ -542,6 +542,12 @@ class JointspaceKinematics:
                 raise self.printer.command_error("Must home axis first: %s" % (target,))
             raise self.printer.command_error(
                 "Move out of range: %s (Z beyond %.3f..%.3f)" % (target, self.limit_z[0], self.limit_z[1]))
+
+    def out_of_range(self, end, reason):
+        """The error of a move that cannot be made, naming its G-code target and why, the same whether the move
+        transform or check_move finds it."""
+        return self.printer.command_error(
+            "Move out of range: X%.3f Y%.3f Z%.3f (%s)" % (end[0], end[1], end[2], reason))
 
     def check_move(self, move):
         if self.joint_space:
@@ -564,7 +570,7 @@ class JointspaceKinematics:
             try:
                 limits, ends_at_rest = self.machine.check_move(move.start_pos, end, speed, move.accel)
             except ValueError as e:
-                raise move.move_error("Move out of range (%s)" % (e,))
+                raise self.out_of_range(end, e)
             if limits is not None:
                 move.limit_speed(limits[0], limits[1])
             if ends_at_rest:
@@ -820,6 +826,9 @@ class MoveSplitter:
         self.ffi, self.lib, self.handle = machine.ffi, machine.lib, machine.handle
         self.buffer = self.ffi.new("double[]", 3 * MAX_WAYPOINTS)
         self.error = self.ffi.new("char[]", ERROR_LEN)
+        self.centre = machine.centre
+        # Only a polar bed's whole turns need following.
+        self.note_xy = kin.note_xy if machine.has_centre else (lambda pos: None)
         gcode_move = printer.lookup_object("gcode_move")
         self.next_transform = gcode_move.set_move_transform(self, force=True)
 
@@ -828,29 +837,45 @@ class MoveSplitter:
 
     def move(self, newpos, speed):
         start = self.next_transform.get_position()
-        if newpos[0] == start[0] and newpos[1] == start[1]:
+        if (newpos[0] == start[0] and newpos[1] == start[1]) or not (
+                self.cut_spans or self._meets_centre(start, newpos)):
+            # Nothing to cut: the move goes whole, and check_move refuses or caps it whole.
             self.next_transform.move(newpos, speed)
+            self.note_xy(newpos)
             return
-        self.kin.refuse_unreachable(start, newpos)
-        bed_angle = self.kin.turn_angle if self.kin.turn_angle is not None else 0.
         count = self.lib.jointspace_move_waypoints(
             self.handle, start[0], start[1], start[2], newpos[0], newpos[1], newpos[2], speed,
-            self.toolhead.max_accel, bed_angle, self.cut_spans, self.buffer, MAX_WAYPOINTS,
+            self.toolhead.max_accel, self.kin.turn_angle or 0., self.cut_spans, self.buffer, MAX_WAYPOINTS,
             self.error, ERROR_LEN)
         if count == -2:
             self.kin.refuse_unreachable(start, newpos, self.ffi.string(self.error).decode())
         if count < 1:
             # More pieces than worth it: the move stays whole and check_move caps it.
             self.next_transform.move(newpos, speed)
-            self.kin.note_xy(newpos)
+            self.note_xy(newpos)
             return
+        if count > 1:
+            # Homed, Z in range: asked of the whole move before any piece is queued.
+            self.kin.refuse_unreachable(start, newpos)
         b = self.buffer
         for i in range(count):
             f = b[3 * i + 2]
             rest = newpos[2:] if i == count - 1 else [s + (e - s) * f for s, e in zip(start[2:], newpos[2:])]
             pos = [b[3 * i], b[3 * i + 1]] + list(rest)
             self.next_transform.move(pos, speed)
-            self.kin.note_xy(pos)
+            self.note_xy(pos)
+
+    def _meets_centre(self, start, end):
+        """Whether the move comes within twice the centre's tolerance (a superset of where the library routes it
+        through the centre: Python's arithmetic need not round as the library's does), or starts within it."""
+        if self.centre is None:
+            return False
+        cx, cy, radius = self.centre
+        sx, sy = start[0] - cx, start[1] - cy
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        t = min(1., max(0., -(sx * dx + sy * dy) / (dx * dx + dy * dy)))
+        px, py = sx + t * dx, sy + t * dy
+        return px * px + py * py < 4. * radius * radius
 
 
 class Jointspace:

@@ -135,7 +135,10 @@ impl Machine {
             (MotorMap::Radius { centre: [0.0, 0.0] }, Shape::Polar(_)) => Solver::PolarRadius,
             (MotorMap::Angle { centre: [0.0, 0.0] }, Shape::Polar(_)) => Solver::PolarAngle,
             (_, Shape::Polar(polar)) => match index {
-                kinematics::polar::BED => Solver::PolarBed(polar.geometry()),
+                kinematics::polar::BED => Solver::PolarBed {
+                    geometry: polar.geometry(),
+                    has_centre: kin.rotation_centre().is_some(),
+                },
                 kinematics::polar::ARM => Solver::PolarArm(polar.geometry()),
                 _ => return None,
             },
@@ -160,7 +163,7 @@ impl Machine {
         accel: f64,
     ) -> Result<MoveVerdict, String> {
         let kin = self.kinematics();
-        kin.check_segment(start, end).map_err(|e| e.to_string())?;
+        self.segment_refusal(start, end)?;
         let ends_at_rest = start != end && kin.rests_at(end);
         if speed.is_nan() || speed <= 0.0 {
             // The segment only (centre_slowdown: klipper caps by Klipper's own rule).
@@ -234,22 +237,39 @@ impl Machine {
         Ok(points)
     }
 
-    /// Every piece of a route the transform would queue can be made (so a refused move queues nothing).
+    /// Every piece of a route the transform would queue can be made (so a refused move queues nothing). A route of
+    /// one piece is the move itself: its end is checked here (for the owner's message), its whole segment by
+    /// Klipper's `check_move`, which refuses it whole.
     fn check_route(&self, start: [f64; 3], points: &[Waypoint], end_z: f64) -> Result<(), String> {
-        let kin = self.kinematics();
         let at = |p: &Waypoint| [p.x, p.y, start[2] + (end_z - start[2]) * p.fraction];
+        let ends = [start, points.last().map_or(start, at)];
+        if ends.iter().flatten().any(|v| !v.is_finite()) {
+            return Err("a coordinate of the move is not finite".to_string());
+        }
         if let Some(beyond) = points.last().and_then(|p| self.beyond_polar_reach(at(p))) {
             return Err(beyond);
+        }
+        if points.len() < 2 {
+            return Ok(());
         }
         let mut from = start;
         for p in points {
             let to = at(p);
-            // The reason alone: where along a piece it lies means nothing to the owner of the G-code line.
-            kin.check_segment(from, to)
-                .map_err(|e| e.reason.to_string())?;
+            self.segment_refusal(from, to)?;
             from = to;
         }
         Ok(())
+    }
+
+    /// Why the segment `a → b` cannot be made, in the owner's terms: how far beyond a polar arm's reach its end
+    /// lies, else the kinematics' reason (where along the segment it lies means nothing to the G-code line's owner).
+    fn segment_refusal(&self, a: [f64; 3], b: [f64; 3]) -> Result<(), String> {
+        if let Some(beyond) = self.beyond_polar_reach(b) {
+            return Err(beyond);
+        }
+        self.kinematics()
+            .check_segment(a, b)
+            .map_err(|e| e.reason.to_string())
     }
 
     /// A SCARA's calibration pattern (`calibrate scara-pattern`'s crosses) for this machine, and the measurements

@@ -22,8 +22,12 @@ pub enum Solver {
     PolarRadius,
     /// Ideal polar bed: `atan2(y, x)` unwrapped against the commanded angle (Klipper's expression).
     PolarAngle,
-    /// Polar bed with the arm's zero and sideways offsets.
-    PolarBed(PolarGeometry),
+    /// Polar bed with the arm's zero and sideways offsets; `has_centre`: the nozzle reaches the point where its
+    /// angle is undefined (the kinematics' `rotation_centre`).
+    PolarBed {
+        geometry: PolarGeometry,
+        has_centre: bool,
+    },
     /// Polar arm with the offsets.
     PolarArm(PolarGeometry),
     /// SCARA shoulder motor (`stepper_a`).
@@ -49,7 +53,7 @@ impl Solver {
             Solver::PolarRadius => (x * x + y * y).sqrt(),
             Solver::PolarAngle if x == 0.0 && y == 0.0 => commanded,
             Solver::PolarAngle => unwrap_near(y.atan2(x), commanded),
-            Solver::PolarBed(g) => g
+            Solver::PolarBed { geometry: g, .. } => g
                 .bed_and_arm(x, y)
                 .map_or(commanded, |(bed, _)| unwrap_near(bed, commanded)),
             Solver::PolarArm(g) => g.bed_and_arm(x, y).map_or(commanded, |(_, arm)| arm),
@@ -75,7 +79,7 @@ impl Solver {
     fn is_bed_with_centre(&self) -> bool {
         match self {
             Solver::PolarAngle => true,
-            Solver::PolarBed(g) => g.arm_lateral_offset == 0.0,
+            Solver::PolarBed { has_centre, .. } => *has_centre,
             _ => false,
         }
     }
@@ -95,7 +99,7 @@ impl Solver {
     /// Whether the commanded position is an angle that may be renormalised into `[−π, π]` after stepping
     /// (a bed that turns without limit; its reading modulo a turn is all that matters).
     fn renormalises(&self) -> bool {
-        matches!(self, Solver::PolarAngle | Solver::PolarBed(_))
+        matches!(self, Solver::PolarAngle | Solver::PolarBed { .. })
     }
 }
 

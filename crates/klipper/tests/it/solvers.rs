@@ -214,7 +214,10 @@ fn check_move_refuses_and_caps() {
     assert!(reason.contains("rotation centre"), "{reason}");
     let (rc, _, reason) = check([100.0, 0.0, 1.0], [250.0, 200.0, 1.0], 100.0);
     assert_eq!(rc, -1);
-    assert!(reason.contains("stepper_arm"), "{reason}");
+    assert!(
+        reason.contains("mm beyond the arm's reach of 150 mm"),
+        "{reason}"
+    );
     let d = 10.0;
     let (rc, caps, _) = check([-100.0, d, 1.0], [100.0, d, 1.0], 100.0);
     assert_eq!(rc, 1);

@@ -810,12 +810,12 @@ MAX_WAYPOINTS = 4096
 
 
 class MoveSplitter:
-    """The G-code move transform. It checks each G-code move whole before any part of it is queued (a refused move
+    """The toolhead's move, wrapped. It checks each move whole before any part of it is queued (a refused move
     moves nothing), turns a polar bed in place on a circle of the centre's tolerance where a move passes through the
     centre or leaves it in a new direction, ends a move that ends within that circle on the centre itself, and (with
     cut_spans) cuts each move where jointspace's planner limits change (near the polar centre, SCARA singular poses,
-    step-rate limits), so check_move caps only the pieces that need it. Chained: the pieces go to the transform that
-    was there before (bed_mesh, skew_correction...) or the toolhead."""
+    step-rate limits), so check_move caps only the pieces that need it. G-code transforms (bed_mesh,
+    skew_correction...) come first, as they end in the toolhead's move."""
 
     def __init__(self, printer, kin, cut_spans):
         self.printer = printer
@@ -829,18 +829,22 @@ class MoveSplitter:
         self.centre = machine.centre
         # Only a polar bed's whole turns need following.
         self.note_xy = kin.note_xy if machine.has_centre else (lambda pos: None)
-        gcode_move = printer.lookup_object("gcode_move")
-        self.next_transform = gcode_move.set_move_transform(self, force=True)
-
-    def get_position(self):
-        return self.next_transform.get_position()
+        # Every toolhead move passes here, not only G-code's: probing, Z_TILT_ADJUST, bed_mesh's segments and other
+        # extras move the toolhead directly, and a move leaving the polar centre must turn the bed in place whoever
+        # asked for it. (Set at klippy:connect, before gcode_move binds the toolhead's move at klippy:ready.)
+        self.toolhead_move = self.toolhead.move
+        self.toolhead.move = self.move
 
     def move(self, newpos, speed):
-        start = self.next_transform.get_position()
+        if self.kin.joint_space:
+            # Homing in joint space: X and Y stand for joint readings.
+            self.toolhead_move(newpos, speed)
+            return
+        start = self.toolhead.get_position()
         if (newpos[0] == start[0] and newpos[1] == start[1]) or not (
                 self.cut_spans or self._meets_centre(start, newpos)):
             # Nothing to cut: the move goes whole, and check_move refuses or caps it whole.
-            self.next_transform.move(newpos, speed)
+            self.toolhead_move(newpos, speed)
             self.note_xy(newpos)
             return
         count = self.lib.jointspace_move_waypoints(
@@ -851,7 +855,7 @@ class MoveSplitter:
             self.kin.refuse_unreachable(start, newpos, self.ffi.string(self.error).decode())
         if count < 1:
             # More pieces than worth it: the move stays whole and check_move caps it.
-            self.next_transform.move(newpos, speed)
+            self.toolhead_move(newpos, speed)
             self.note_xy(newpos)
             return
         if count > 1:
@@ -862,7 +866,7 @@ class MoveSplitter:
             f = b[3 * i + 2]
             rest = newpos[2:] if i == count - 1 else [s + (e - s) * f for s, e in zip(start[2:], newpos[2:])]
             pos = [b[3 * i], b[3 * i + 1]] + list(rest)
-            self.next_transform.move(pos, speed)
+            self.toolhead_move(pos, speed)
             self.note_xy(pos)
 
     def _meets_centre(self, start, end):

@@ -17,6 +17,7 @@ mod hosts;
 mod install;
 mod layout;
 mod polar;
+mod regressions;
 mod routes;
 mod scara;
 mod scara_grid;

@@ -246,7 +246,7 @@ impl Machine {
         if ends.iter().flatten().any(|v| !v.is_finite()) {
             return Err("a coordinate of the move is not finite".to_string());
         }
-        if let Some(beyond) = points.last().and_then(|p| self.beyond_polar_reach(at(p))) {
+        if let Some(beyond) = points.last().and_then(|p| self.beyond_reach(at(p))) {
             return Err(beyond);
         }
         if points.len() < 2 {
@@ -261,15 +261,17 @@ impl Machine {
         Ok(())
     }
 
-    /// Why the segment `a → b` cannot be made, in the owner's terms: how far beyond a polar arm's reach its end
-    /// lies, else the kinematics' reason (where along the segment it lies means nothing to the G-code line's owner).
+    /// Why the segment `a → b` cannot be made, in the owner's terms: how far beyond the arm's reach its end lies,
+    /// how close to a SCARA's shoulder it passes, else the kinematics' reason (where along the segment it lies means
+    /// nothing to the G-code line's owner).
     fn segment_refusal(&self, a: [f64; 3], b: [f64; 3]) -> Result<(), String> {
-        if let Some(beyond) = self.beyond_polar_reach(b) {
+        if let Some(beyond) = self.beyond_reach(b) {
             return Err(beyond);
         }
-        self.kinematics()
-            .check_segment(a, b)
-            .map_err(|e| e.reason.to_string())
+        self.kinematics().check_segment(a, b).map_err(|e| {
+            self.inside_base(a, b)
+                .unwrap_or_else(|| e.reason.to_string())
+        })
     }
 
     /// A SCARA's calibration pattern (`calibrate scara-pattern`'s crosses) for this machine, and the measurements
@@ -319,17 +321,42 @@ impl Machine {
         &self.setup.planner.kinematic_limits
     }
 
-    /// How far beyond a polar arm's reach `p` lies, in the owner's terms, when it does.
-    fn beyond_polar_reach(&self, p: [f64; 3]) -> Option<String> {
-        let Shape::Polar(polar) = &self.shape else {
+    /// How far beyond the arm's reach `p` lies, in the owner's terms, when it does: a polar arm's travel, a SCARA's
+    /// two links at full stretch.
+    fn beyond_reach(&self, p: [f64; 3]) -> Option<String> {
+        let (beyond, reach) = match &self.shape {
+            Shape::Polar(polar) => {
+                let max = polar.params().arm.position_max?;
+                (-self.reach_margin(p)?, max)
+            }
+            Shape::Scara(scara) => {
+                let [sx, sy] = scara.shoulder();
+                let reach = scara.params().link1_length + scara.params().link2_length;
+                ((p[0] - sx).hypot(p[1] - sy) - reach, reach)
+            }
+            Shape::Cartesian => return None,
+        };
+        (beyond > 0.0).then(|| format!("{beyond:.3} mm beyond the arm's reach of {reach} mm"))
+    }
+
+    /// How close to a SCARA's shoulder the segment `a → b` passes, when that is inside its base protection radius.
+    fn inside_base(&self, a: [f64; 3], b: [f64; 3]) -> Option<String> {
+        let Shape::Scara(scara) = &self.shape else {
             return None;
         };
-        let max = polar.params().arm.position_max?;
-        let margin = self.reach_margin(p).filter(|m| *m < 0.0)?;
-        Some(format!(
-            "{:.3} mm beyond the arm's reach of {max} mm",
-            -margin
-        ))
+        let [sx, sy] = scara.shoulder();
+        let (ax, ay, dx, dy) = (a[0] - sx, a[1] - sy, b[0] - a[0], b[1] - a[1]);
+        let length2 = dx * dx + dy * dy;
+        let t = if length2 > 0.0 {
+            (-(ax * dx + ay * dy) / length2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let closest = (ax + t * dx).hypot(ay + t * dy);
+        let base = scara.params().base_protection_radius;
+        (closest < base).then(|| {
+            format!("passes {closest:.3} mm from the shoulder, inside the base radius of {base} mm")
+        })
     }
 
     /// How far `p` is from the edge of what the machine reaches (mm, negative outside): the SCARA's annulus

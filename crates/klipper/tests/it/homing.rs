@@ -171,10 +171,12 @@ fn unreachable_moves_are_refused_with_the_reason() {
         (
             &scara,
             "SET_KINEMATIC_POSITION X=0 Y=130 Z=0.5\nG1 X0 Y30 F3000\nG1 X0 Y250\nG1 X-50 Y120\nG1 X0 Y205\n",
-            // Y250 lies beyond reach, but the move meets the straight-arm singular band first.
+            // Y250 lies beyond reach (said so before anything else about the move).
             &[
-                "inside the minimum radius",
-                "too close to a singular pose",
+                "Move out of range: X0.000 Y30.000 Z0.500 (passes 30.000 mm from the shoulder, inside the base \
+                 radius of 60 mm)",
+                "Move out of range: X0.000 Y250.000 Z0.500 (50.000 mm beyond the arm's reach of 200 mm)",
+                "Move out of range: X0.000 Y205.000 Z0.500 (5.000 mm beyond the arm's reach of 200 mm)",
                 "Move out of range",
             ],
         ),

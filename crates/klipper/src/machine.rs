@@ -336,7 +336,10 @@ impl Machine {
             }
             Shape::Cartesian => return None,
         };
-        (beyond > 0.0).then(|| format!("{beyond:.3} mm beyond the arm's reach of {reach} mm"))
+        (beyond > 0.0).then(|| {
+            let beyond = apart(beyond, 0.0);
+            format!("{beyond} mm beyond the arm's reach of {reach} mm")
+        })
     }
 
     /// How close to a SCARA's shoulder the segment `a → b` passes, when that is inside its base protection radius.
@@ -355,7 +358,8 @@ impl Machine {
         let closest = (ax + t * dx).hypot(ay + t * dy);
         let base = scara.params().base_protection_radius;
         (closest < base).then(|| {
-            format!("passes {closest:.3} mm from the shoulder, inside the base radius of {base} mm")
+            let closest = apart(closest, base);
+            format!("passes {closest} mm from the shoulder, inside the base radius of {base} mm")
         })
     }
 
@@ -384,6 +388,16 @@ impl Machine {
     }
 }
 
+/// `value` with three decimals, or as many more as it takes not to read as `limit` (a refusal never shows the
+/// limit's own value as the offending one).
+fn apart(value: f64, limit: f64) -> String {
+    let reads = |d: usize| format!("{value:.d$}");
+    (3..=15)
+        .map(reads)
+        .find(|text| text.parse::<f64>().is_ok_and(|v| v != limit))
+        .unwrap_or_else(|| format!("{value:e}"))
+}
+
 /// The shoulder range the step solvers can follow: at most (−π, π], where they take q1 as the FEKT-SCARA module
 /// does (a move through q1 = ±π would make the elbow motor jump by `2π·c`, so it is refused as a joint limit).
 fn within_branch_cut(limits: Option<(f64, f64)>) -> (f64, f64) {
@@ -403,4 +417,16 @@ fn read_keys(config: &MachineConfig) -> Result<CString, String> {
         }
     }
     CString::new(lines).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::apart;
+
+    #[test]
+    fn a_refusal_never_shows_the_limit_as_the_value() {
+        assert_eq!(apart(12.5, 60.0), "12.500");
+        assert_eq!(apart(59.999_999_999_99, 60.0), "59.99999999999");
+        assert_eq!(apart(3e-14, 0.0), "0.00000000000003");
+    }
 }

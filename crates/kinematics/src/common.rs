@@ -153,7 +153,7 @@ pub(crate) fn lerp(a: Vec3, b: Vec3, t: f64) -> Vec3 {
 /// Fraction `t ∈ [0, 1]` of the XY segment `a → b` closest to `centre`, and that XY distance.
 ///
 /// Closed form: minimise `|a + t·d − c|²`, a parabola in `t`, then clamp to the segment.
-pub(crate) fn closest_approach(a: Vec3, b: Vec3, centre: [f64; 2]) -> (f64, f64) {
+pub fn closest_approach(a: Vec3, b: Vec3, centre: [f64; 2]) -> (f64, f64) {
     let (ax, ay) = (a[0] - centre[0], a[1] - centre[1]);
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;

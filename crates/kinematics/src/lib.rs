@@ -13,6 +13,7 @@ pub mod scara;
 pub mod workspace;
 
 pub use angle::unwrap_near;
+pub use common::closest_approach;
 pub use params::*;
 
 /// A Cartesian toolhead position `[x, y, z]` in mm.
@@ -146,12 +147,19 @@ pub enum ReachError {
 /// value never reads as equal to the limit it exceeds (`150.0000001`, not `150.0000`).
 fn beyond_limits(value: f64, min: f64, max: f64, decimals: usize) -> String {
     let limit = if value > max { max } else { min };
-    let mut d = decimals;
+    let d = decimals_apart(value, limit, decimals);
+    format!("{value:.d$}, outside its limits [{min:.d$}, {max:.d$}]")
+}
+
+/// At least `decimals` decimals, and as many more (up to 15) as it takes for `value` not to read as `limit`: a
+/// message never shows the offending value as the limit it breaks.
+pub fn decimals_apart(value: f64, limit: f64, decimals: usize) -> usize {
     let reads = |x: f64, d: usize| format!("{x:.d$}").parse::<f64>().unwrap_or(x);
+    let mut d = decimals;
     while d < 15 && reads(value, d) == reads(limit, d) {
         d += 1;
     }
-    format!("{value:.d$}, outside its limits [{min:.d$}, {max:.d$}]")
+    d
 }
 
 /// A problem found along a straight segment, with the fraction `t ∈ [0, 1]` of the segment where it occurs.

@@ -265,11 +265,10 @@ impl Machine {
     /// how close to a SCARA's shoulder it passes, else the kinematics' reason (where along the segment it lies means
     /// nothing to the G-code line's owner).
     fn segment_refusal(&self, a: [f64; 3], b: [f64; 3]) -> Result<(), String> {
-        if let Some(beyond) = self.beyond_reach(b) {
-            return Err(beyond);
-        }
+        // The owner's terms are worked out only for a refusal: check_move asks this of every move.
         self.kinematics().check_segment(a, b).map_err(|e| {
-            self.inside_base(a, b)
+            self.beyond_reach(b)
+                .or_else(|| self.inside_base(a, b))
                 .unwrap_or_else(|| e.reason.to_string())
         })
     }
@@ -347,15 +346,7 @@ impl Machine {
         let Shape::Scara(scara) = &self.shape else {
             return None;
         };
-        let [sx, sy] = scara.shoulder();
-        let (ax, ay, dx, dy) = (a[0] - sx, a[1] - sy, b[0] - a[0], b[1] - a[1]);
-        let length2 = dx * dx + dy * dy;
-        let t = if length2 > 0.0 {
-            (-(ax * dx + ay * dy) / length2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let closest = (ax + t * dx).hypot(ay + t * dy);
+        let (_, closest) = kinematics::closest_approach(a, b, scara.shoulder());
         let base = scara.params().base_protection_radius;
         (closest < base).then(|| {
             let closest = apart(closest, base);
@@ -388,14 +379,10 @@ impl Machine {
     }
 }
 
-/// `value` with three decimals, or as many more as it takes not to read as `limit` (a refusal never shows the
-/// limit's own value as the offending one).
+/// `value` with three decimals, or as many more as it takes not to read as `limit`.
 fn apart(value: f64, limit: f64) -> String {
-    let reads = |d: usize| format!("{value:.d$}");
-    (3..=15)
-        .map(reads)
-        .find(|text| text.parse::<f64>().is_ok_and(|v| v != limit))
-        .unwrap_or_else(|| format!("{value:e}"))
+    let d = kinematics::decimals_apart(value, limit, 3);
+    format!("{value:.d$}")
 }
 
 /// The shoulder range the step solvers can follow: at most (−π, π], where they take q1 as the FEKT-SCARA module

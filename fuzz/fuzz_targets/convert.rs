@@ -2,10 +2,9 @@
 //! segmentation); every move the converter writes must carry finite numbers.
 #![no_main]
 
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 
 use convert::{AxisMap, ConvertOptions, Converter, Target, convert_gcode};
-use kinematics::Kinematics;
 use libfuzzer_sys::fuzz_target;
 
 const MACHINE: &str = include_str!("../../examples/machines/polar.cfg");
@@ -13,11 +12,10 @@ const MACHINE: &str = include_str!("../../examples/machines/polar.cfg");
 fn axis_map() -> &'static AxisMap {
     static MAP: OnceLock<AxisMap> = OnceLock::new();
     MAP.get_or_init(|| {
-        let machine = config::MachineConfig::from_str(MACHINE, "examples/machines/polar.cfg")
+        let machine = machine::Machine::from_text(MACHINE, "examples/machines/polar.cfg")
             .expect("example machine is valid");
-        let kin: Arc<dyn Kinematics> =
-            Arc::from(kinematics::build(&machine.params).expect("polar kinematics"));
-        AxisMap::motors(kin, Target::Cylindrical).expect("polar axis map")
+        AxisMap::motors(machine.setup.kinematics.clone(), Target::Cylindrical)
+            .expect("polar axis map")
     })
 }
 

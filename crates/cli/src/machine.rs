@@ -8,6 +8,14 @@ use crate::diag;
 
 /// Load `printer.cfg` and build the machine; the file becomes an input no output may replace.
 pub fn load_machine(path: &Path) -> miette::Result<Machine> {
+    let config = read_config(path)?;
+    Machine::from_config(config, &path.display().to_string())
+        .map_err(|e| miette::miette!("{}: {e}", path.display()))
+}
+
+/// Read `printer.cfg` with its warnings on standard error, refused when it has a key nothing reads (Klipper would
+/// not start on it); the file becomes an input no output may replace.
+pub fn read_config(path: &Path) -> miette::Result<config::MachineConfig> {
     outfile::register_input(path);
     let (config, notes) =
         Machine::read(path).map_err(|e| miette::Report::new(diag::config_error(&e)))?;
@@ -25,14 +33,22 @@ pub fn load_machine(path: &Path) -> miette::Result<Machine> {
             path.display()
         );
     }
-    Machine::from_config(config, &path.display().to_string())
-        .map_err(|e| miette::miette!("{}: {e}", path.display()))
+    Ok(config)
 }
 
-/// The motors' speed limits as the planner applies them (angular and joint limits, step rates), for the converter:
-/// every written segment takes at least each limited motor's travel over its limit.
-pub fn convert_limits(setup: &motion::machine::MachineSetup) -> Vec<convert::MotorLimit> {
-    setup
+/// A conversion of `machine`'s G-code for firmware without its kinematics, as `convert` and the demo assemble it:
+/// the output axes of the machine's own motors (its kinematics shared, not built again), and options that start
+/// where homing leaves the machine (nothing unknown is guessed without a homing pose) and give every written
+/// segment at least each limited motor's travel over its limit, as the planner limits it (angular and joint
+/// limits, step rates).
+pub fn convert_job(
+    machine: &Machine,
+    mut options: convert::ConvertOptions,
+) -> Result<(convert::AxisMap, convert::ConvertOptions), convert::ConvertError> {
+    let map = convert::AxisMap::motors(machine.setup.kinematics.clone(), options.target)?;
+    options.home = machine.setup.home_position;
+    options.motor_limits = machine
+        .setup
         .planner
         .kinematic_limits
         .iter()
@@ -41,5 +57,6 @@ pub fn convert_limits(setup: &motion::machine::MachineSetup) -> Vec<convert::Mot
             max_velocity: l.max_velocity,
             max_accel: l.max_accel,
         })
-        .collect()
+        .collect();
+    Ok((map, options))
 }

@@ -81,6 +81,20 @@ pub struct RotationCentre {
     pub rim: Option<f64>,
 }
 
+/// Within this distance of a polar centre (mm), a point on a move through the centre takes its bed angle from the
+/// move's direction, not from its own coordinates (the Klipper plug-in's bed solver): their rounding (about 1e-16 of
+/// coordinates below a metre) would turn `atan2` by up to half a turn right at the centre, a burst of steps the MCU
+/// cannot take. Here it turns the angle by at most 1e-10 rad, and a line that misses the centre by
+/// [`RADIAL_ROUNDING`] by at most 1e-6 rad.
+pub const CENTRE_DIRECTION_RADIUS: f64 = 1e-3;
+
+/// Distance (mm) from the exact polar centre where a conversion for firmware without polar kinematics stops a move
+/// through the centre and turns the bed in place. Not the centre's tolerance ([`RotationCentre::tolerance`], which
+/// decides which paths meet the centre): the turn sweeps a half circle of this radius about the centre, so this much
+/// is a path deviation, and the tolerance (up to 5 µm, half an arm step) would use the whole default conversion
+/// tolerance of 5 µm, and more than a finer one. At 0.1 µm it stays far below any tolerance.
+pub const CENTRE_TURN_GAP: f64 = 1e-7;
+
 /// The largest deviation from the G-code path that jointspace allows itself anywhere (mm): at the polar centre,
 /// and by default in conversions.
 pub const PATH_TOLERANCE: f64 = 0.005;
@@ -170,6 +184,22 @@ pub struct SegmentError {
     pub reason: ReachError,
 }
 
+/// A machine's geometry for solvers that follow one motor (see [`Kinematics::solver_geometry`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SolverGeometry {
+    /// Every motor is linear in the toolhead position ([`MotorMap::Linear`]).
+    Linear,
+    Polar(polar::PolarGeometry),
+    Scara(scara::ScaraGeometry),
+}
+
+/// `value` with three decimals, or as many more as it takes not to read as `limit` (a refusal never shows the
+/// limit itself as the offending value).
+pub(crate) fn beside_limit(value: f64, limit: f64) -> String {
+    let d = decimals_apart(value, limit, 3);
+    format!("{value:.d$}")
+}
+
 /// A machine's kinematics. Implementations: [`cartesian::Cartesian`], [`polar::Polar`], [`scara::Scara`].
 pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// Short name as in `printer.cfg` (`cartesian`, `polar`, `scara`).
@@ -226,6 +256,26 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
         false
     }
 
+    /// How far `p` is from the edge of what the arm reaches (mm, negative outside): a SCARA's annulus about its
+    /// shoulder, a polar arm's travel. `None` where the limits are per axis (a Cartesian machine).
+    fn reach_margin(&self, _p: Vec3) -> Option<f64> {
+        None
+    }
+
+    /// Why the segment `a → b` is refused, in its owner's terms, where the machine has them: how far beyond the
+    /// arm's reach its end lies, how close to a SCARA's shoulder it passes. `None`: the [`SegmentError`]'s reason
+    /// is the one to give (where along the segment it lies means nothing to a G-code line's owner). Asked only
+    /// for a refusal.
+    fn refusal_in_owner_terms(&self, _a: Vec3, _b: Vec3) -> Option<String> {
+        None
+    }
+
+    /// The machine's geometry as plain `Copy` data, for step solvers outside this crate that follow one motor in
+    /// a host's own arithmetic (the Klipper plug-in's).
+    fn solver_geometry(&self) -> SolverGeometry {
+        SolverGeometry::Linear
+    }
+
     /// Checks one point against everything [`Self::check_segment`] checks (soft limits included).
     ///
     /// [`Self::inverse`] fails only where the geometry has no answer (out of reach, at the polar centre);
@@ -261,7 +311,14 @@ pub fn build(params: &MachineParams) -> Result<Box<dyn Kinematics>, ParamError> 
 
 #[cfg(test)]
 mod tests {
-    use super::ReachError;
+    use super::{ReachError, beside_limit};
+
+    #[test]
+    fn a_refusal_never_shows_the_limit_as_the_value() {
+        assert_eq!(beside_limit(12.5, 60.0), "12.500");
+        assert_eq!(beside_limit(59.999_999_999_99, 60.0), "59.99999999999");
+        assert_eq!(beside_limit(3e-14, 0.0), "0.00000000000003");
+    }
 
     #[test]
     fn a_value_beyond_a_limit_never_reads_as_the_limit() {

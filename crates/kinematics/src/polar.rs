@@ -133,6 +133,31 @@ impl Kinematics for Polar {
         Some(TurningLimits::Bed)
     }
 
+    fn reach_margin(&self, p: Vec3) -> Option<f64> {
+        let max = self.params.arm.position_max?;
+        let g = self.geometry();
+        Some(match g.bed_and_arm(p[0], p[1]) {
+            Ok((_, arm)) => max - arm,
+            // On the centre of an ideal bed the arm is at its zero.
+            Err(ReachError::AtCentre { .. }) => max + g.arm_zero_offset,
+            // Inside the circle the offset arm never passes over: negative, by how far inside.
+            Err(_) => p[0].hypot(p[1]) - g.arm_lateral_offset.abs(),
+        })
+    }
+
+    fn refusal_in_owner_terms(&self, _a: Vec3, b: Vec3) -> Option<String> {
+        let reach = self.params.arm.position_max?;
+        let beyond = -self.reach_margin(b)?;
+        (beyond > 0.0).then(|| {
+            let beyond = crate::beside_limit(beyond, 0.0);
+            format!("{beyond} mm beyond the arm's reach of {reach} mm")
+        })
+    }
+
+    fn solver_geometry(&self) -> crate::SolverGeometry {
+        crate::SolverGeometry::Polar(self.geometry())
+    }
+
     /// The arm at its endstop, the bed declared at angle 0 (a bed endstop, if any, is not used here).
     fn home_pose(&self, endstops: &[Option<f64>]) -> Result<Option<Vec3>, ReachError> {
         match (

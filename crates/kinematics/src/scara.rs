@@ -707,6 +707,32 @@ impl Kinematics for Scara {
     fn rests_at(&self, p: Vec3) -> bool {
         self.in_singular_band(p)
     }
+
+    fn reach_margin(&self, p: Vec3) -> Option<f64> {
+        let [sx, sy] = self.shoulder();
+        let rho = (p[0] - sx).hypot(p[1] - sy);
+        Some((rho - self.min_radius()).min(self.max_radius() - rho))
+    }
+
+    fn refusal_in_owner_terms(&self, a: Vec3, b: Vec3) -> Option<String> {
+        let [sx, sy] = self.shoulder();
+        let reach = self.params.link1_length + self.params.link2_length;
+        let beyond = (b[0] - sx).hypot(b[1] - sy) - reach;
+        if beyond > 0.0 {
+            let beyond = crate::beside_limit(beyond, 0.0);
+            return Some(format!("{beyond} mm beyond the arm's reach of {reach} mm"));
+        }
+        let (_, closest) = crate::closest_approach(a, b, self.shoulder());
+        let base = self.params.base_protection_radius;
+        (closest < base).then(|| {
+            let closest = crate::beside_limit(closest, base);
+            format!("passes {closest} mm from the shoulder, inside the base radius of {base} mm")
+        })
+    }
+
+    fn solver_geometry(&self) -> crate::SolverGeometry {
+        crate::SolverGeometry::Scara(self.geometry)
+    }
 }
 
 #[cfg(test)]

@@ -3,17 +3,13 @@
 //! and how fast, the pose to report. The machine is built by the `config` crate exactly as the `jointspace`
 //! command line builds it, so one printer.cfg means the same machine in both.
 
-use std::f64::consts::PI;
 use std::ffi::{CStr, CString};
 use std::path::Path;
 
 use calibrate::scara::{Pattern, PatternOptions};
 use config::MachineConfig;
-use kinematics::polar::Polar;
-use kinematics::scara::Scara;
-use kinematics::{Kinematics, MachineParams, MotorMap, ReachError};
+use kinematics::{Kinematics, MachineParams, MotorMap, SolverGeometry};
 use motion::kinematic_limits::{JunctionSide, MotorLimit, caps_corners, junction_v2, split};
-use motion::machine::MachineSetup;
 
 use crate::pieces::{Centre, Cuts, Waypoint, waypoints};
 use crate::stepper::Solver;
@@ -25,8 +21,8 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// A machine as the Klipper plug-in uses it. Immutable once built.
 #[derive(Debug)]
 pub struct Machine {
-    setup: MachineSetup,
-    shape: Shape,
+    /// Built by the `machine` crate, as every front-end builds it.
+    machine: ::machine::Machine,
     /// The kinematics' motors, in their order, as C strings for the Python side.
     motor_names: Vec<CString>,
     /// `section key` lines of every config key the machine read (Klipper refuses keys nobody read).
@@ -35,14 +31,6 @@ pub struct Machine {
     declared_home: Option<[f64; 3]>,
     /// The host's arithmetic, for the solvers (see `abi::Move::coord`).
     fused: bool,
-}
-
-/// The machine's own type, for what only it knows (its solvers' geometry, its reach).
-#[derive(Debug)]
-enum Shape {
-    Cartesian,
-    Polar(Box<Polar>),
-    Scara(Box<Scara>),
 }
 
 /// What a move may do, for Klipper's `check_move`.
@@ -58,47 +46,38 @@ pub struct MoveVerdict {
 impl Machine {
     /// Builds the machine from printer.cfg text (only the sections it needs; includes are already resolved).
     pub fn from_config_text(text: &str, fused: bool) -> Result<Machine, String> {
-        let config =
-            MachineConfig::from_str(text, "printer.cfg").map_err(|e| format!("config: {e}"))?;
-        Machine::from_config(config, fused)
+        let machine =
+            ::machine::Machine::from_text(text, "printer.cfg").map_err(|e| e.to_string())?;
+        Machine::new(machine, fused)
     }
 
     /// Builds the machine from the printer.cfg file Klipper was started with (its includes and SAVE_CONFIG block
     /// read as the `jointspace` command line reads them), so an error names the owner's file, line and column.
     pub fn from_config_file(path: &Path, fused: bool) -> Result<Machine, String> {
-        let config = MachineConfig::load(path).map_err(|e| format!("config: {e}"))?;
-        Machine::from_config(config, fused)
+        let (machine, _notes) = ::machine::Machine::load(path).map_err(|e| e.to_string())?;
+        Machine::new(machine, fused)
     }
 
-    fn from_config(mut config: MachineConfig, fused: bool) -> Result<Machine, String> {
-        if let MachineParams::Scara(p) = &mut config.params {
-            p.shoulder_limits = Some(within_branch_cut(p.shoulder_limits));
-        }
-        let setup = MachineSetup::from_config(&config).map_err(|e| e.to_string())?;
-        let motor_names = setup
+    fn new(machine: ::machine::Machine, fused: bool) -> Result<Machine, String> {
+        let motor_names = machine
+            .setup
             .kinematics
             .motors()
             .iter()
             .map(|m| CString::new(m.name.as_str()).map_err(|e| e.to_string()))
             .collect::<Result<_, _>>()?;
-        let declared_home = config.home_position.as_ref().and_then(|p| match p[..] {
-            [x, y] => Some([x, y, 0.0]),
-            [x, y, z, ..] => Some([x, y, z]),
-            _ => None,
-        });
-        let shape = match &config.params {
-            MachineParams::Cartesian(_) => Shape::Cartesian,
-            MachineParams::Polar(p) => {
-                Shape::Polar(Box::new(Polar::new(p.clone()).map_err(|e| e.to_string())?))
-            }
-            MachineParams::Scara(p) => {
-                Shape::Scara(Box::new(Scara::new(p.clone()).map_err(|e| e.to_string())?))
-            }
-        };
+        let declared_home = machine
+            .config
+            .home_position
+            .as_ref()
+            .and_then(|p| match p[..] {
+                [x, y] => Some([x, y, 0.0]),
+                [x, y, z, ..] => Some([x, y, z]),
+                _ => None,
+            });
         Ok(Machine {
-            read_keys: read_keys(&config)?,
-            shape,
-            setup,
+            read_keys: read_keys(&machine.config)?,
+            machine,
             motor_names,
             declared_home,
             fused,
@@ -106,7 +85,7 @@ impl Machine {
     }
 
     pub fn kinematics(&self) -> &dyn Kinematics {
-        self.setup.kinematics.as_ref()
+        self.machine.setup.kinematics.as_ref()
     }
 
     pub fn motor_names(&self) -> &[CString] {
@@ -130,21 +109,25 @@ impl Machine {
     pub fn solver(&self, name: &str) -> Option<Solver> {
         let kin = self.kinematics();
         let index = kin.motors().iter().position(|m| m.name == name)?;
-        let solver = match (kin.motor_map(index), &self.shape) {
+        let solver = match (kin.motor_map(index), kin.solver_geometry()) {
             (MotorMap::Linear { coeffs }, _) => Solver::Linear { coeffs },
-            (MotorMap::Radius { centre: [0.0, 0.0] }, Shape::Polar(_)) => Solver::PolarRadius,
-            (MotorMap::Angle { centre: [0.0, 0.0] }, Shape::Polar(_)) => Solver::PolarAngle,
-            (_, Shape::Polar(polar)) => match index {
+            (MotorMap::Radius { centre: [0.0, 0.0] }, SolverGeometry::Polar(_)) => {
+                Solver::PolarRadius
+            }
+            (MotorMap::Angle { centre: [0.0, 0.0] }, SolverGeometry::Polar(_)) => {
+                Solver::PolarAngle
+            }
+            (_, SolverGeometry::Polar(geometry)) => match index {
                 kinematics::polar::BED => Solver::PolarBed {
-                    geometry: polar.geometry(),
+                    geometry,
                     has_centre: kin.rotation_centre().is_some(),
                 },
-                kinematics::polar::ARM => Solver::PolarArm(polar.geometry()),
+                kinematics::polar::ARM => Solver::PolarArm(geometry),
                 _ => return None,
             },
-            (_, Shape::Scara(scara)) => match index {
-                kinematics::scara::SHOULDER => Solver::ScaraShoulder(scara.geometry()),
-                kinematics::scara::ELBOW => Solver::ScaraElbow(scara.geometry()),
+            (_, SolverGeometry::Scara(geometry)) => match index {
+                kinematics::scara::SHOULDER => Solver::ScaraShoulder(geometry),
+                kinematics::scara::ELBOW => Solver::ScaraElbow(geometry),
                 _ => return None,
             },
             _ => return None,
@@ -246,7 +229,11 @@ impl Machine {
         if ends.iter().flatten().any(|v| !v.is_finite()) {
             return Err("a coordinate of the move is not finite".to_string());
         }
-        if let Some(beyond) = points.last().and_then(|p| self.beyond_reach(at(p))) {
+        let kin = self.kinematics();
+        if let Some(beyond) = points
+            .last()
+            .and_then(|p| kin.refusal_in_owner_terms(at(p), at(p)))
+        {
             return Err(beyond);
         }
         if points.len() < 2 {
@@ -266,9 +253,9 @@ impl Machine {
     /// nothing to the G-code line's owner).
     fn segment_refusal(&self, a: [f64; 3], b: [f64; 3]) -> Result<(), String> {
         // The owner's terms are worked out only for a refusal: check_move asks this of every move.
-        self.kinematics().check_segment(a, b).map_err(|e| {
-            self.beyond_reach(b)
-                .or_else(|| self.inside_base(a, b))
+        let kin = self.kinematics();
+        kin.check_segment(a, b).map_err(|e| {
+            kin.refusal_in_owner_terms(a, b)
                 .unwrap_or_else(|| e.reason.to_string())
         })
     }
@@ -281,7 +268,7 @@ impl Machine {
         count: usize,
         options: &PatternOptions,
     ) -> Option<(Pattern, String)> {
-        let Shape::Scara(scara) = &self.shape else {
+        let MachineParams::Scara(params) = &self.machine.config.params else {
             return None;
         };
         let kin = self.kinematics();
@@ -297,8 +284,8 @@ impl Machine {
             ];
             same_pose && arms.iter().all(|(p, q)| kin.check_segment(*p, *q).is_ok())
         };
-        let geometry = calibrate::scara::ScaraGeometry::from(scara.params());
-        let home = self.declared_home.or(self.setup.home_position);
+        let geometry = calibrate::scara::ScaraGeometry::from(params);
+        let home = self.declared_home.or(self.machine.setup.home_position);
         let mut motors = [0.0; 3];
         let options = PatternOptions {
             home_pose: home
@@ -313,83 +300,18 @@ impl Machine {
 
     /// The `minimum_cruise_ratio` of the config (Klipper's lookahead uses the same).
     fn cruise_ratio(&self) -> f64 {
-        self.setup.planner.limits.minimum_cruise_ratio
+        self.machine.setup.planner.limits.minimum_cruise_ratio
     }
 
     fn motor_limits(&self) -> &[MotorLimit] {
-        &self.setup.planner.kinematic_limits
+        &self.machine.setup.planner.kinematic_limits
     }
 
-    /// How far beyond the arm's reach `p` lies, in the owner's terms, when it does: a polar arm's travel, a SCARA's
-    /// two links at full stretch.
-    fn beyond_reach(&self, p: [f64; 3]) -> Option<String> {
-        let (beyond, reach) = match &self.shape {
-            Shape::Polar(polar) => {
-                let max = polar.params().arm.position_max?;
-                (-self.reach_margin(p)?, max)
-            }
-            Shape::Scara(scara) => {
-                let [sx, sy] = scara.shoulder();
-                let reach = scara.params().link1_length + scara.params().link2_length;
-                ((p[0] - sx).hypot(p[1] - sy) - reach, reach)
-            }
-            Shape::Cartesian => return None,
-        };
-        (beyond > 0.0).then(|| {
-            let beyond = apart(beyond, 0.0);
-            format!("{beyond} mm beyond the arm's reach of {reach} mm")
-        })
-    }
-
-    /// How close to a SCARA's shoulder the segment `a → b` passes, when that is inside its base protection radius.
-    fn inside_base(&self, a: [f64; 3], b: [f64; 3]) -> Option<String> {
-        let Shape::Scara(scara) = &self.shape else {
-            return None;
-        };
-        let (_, closest) = kinematics::closest_approach(a, b, scara.shoulder());
-        let base = scara.params().base_protection_radius;
-        (closest < base).then(|| {
-            let closest = apart(closest, base);
-            format!("passes {closest} mm from the shoulder, inside the base radius of {base} mm")
-        })
-    }
-
-    /// How far `p` is from the edge of what the machine reaches (mm, negative outside): the SCARA's annulus
-    /// about the shoulder, the polar arm's travel. `None` for a Cartesian machine (its limits are per axis).
+    /// How far `p` is from the edge of what the machine reaches (mm, negative outside); `None` for a Cartesian
+    /// machine (its limits are per axis).
     pub fn reach_margin(&self, p: [f64; 3]) -> Option<f64> {
-        match &self.shape {
-            Shape::Scara(scara) => {
-                let [sx, sy] = scara.shoulder();
-                let rho = (p[0] - sx).hypot(p[1] - sy);
-                Some((rho - scara.min_radius()).min(scara.max_radius() - rho))
-            }
-            Shape::Polar(polar) => {
-                let max = polar.params().arm.position_max?;
-                let g = polar.geometry();
-                match g.bed_and_arm(p[0], p[1]) {
-                    Ok((_, arm)) => Some(max - arm),
-                    // On the centre of an ideal bed the arm is at its zero.
-                    Err(ReachError::AtCentre { .. }) => Some(max + g.arm_zero_offset),
-                    // Inside the circle the offset arm never passes over: negative, by how far inside.
-                    Err(_) => Some(p[0].hypot(p[1]) - g.arm_lateral_offset.abs()),
-                }
-            }
-            Shape::Cartesian => None,
-        }
+        self.kinematics().reach_margin(p)
     }
-}
-
-/// `value` with three decimals, or as many more as it takes not to read as `limit`.
-fn apart(value: f64, limit: f64) -> String {
-    let d = kinematics::decimals_apart(value, limit, 3);
-    format!("{value:.d$}")
-}
-
-/// The shoulder range the step solvers can follow: at most (−π, π], where they take q1 as the FEKT-SCARA module
-/// does (a move through q1 = ±π would make the elbow motor jump by `2π·c`, so it is refused as a joint limit).
-fn within_branch_cut(limits: Option<(f64, f64)>) -> (f64, f64) {
-    let (min, max) = limits.unwrap_or((-PI, PI));
-    (min.max(-PI), max.min(PI))
 }
 
 /// Every `section key` the config reader read, one per line.
@@ -404,16 +326,4 @@ fn read_keys(config: &MachineConfig) -> Result<CString, String> {
         }
     }
     CString::new(lines).map_err(|e| e.to_string())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::apart;
-
-    #[test]
-    fn a_refusal_never_shows_the_limit_as_the_value() {
-        assert_eq!(apart(12.5, 60.0), "12.500");
-        assert_eq!(apart(59.999_999_999_99, 60.0), "59.99999999999");
-        assert_eq!(apart(3e-14, 0.0), "0.00000000000003");
-    }
 }

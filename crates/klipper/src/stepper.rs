@@ -9,7 +9,7 @@ use std::f64::consts::{PI, TAU};
 
 use kinematics::polar::PolarGeometry;
 use kinematics::scara::ScaraGeometry;
-use kinematics::{RADIAL_ROUNDING, unwrap_near};
+use kinematics::{CENTRE_DIRECTION_RADIUS, RADIAL_ROUNDING, unwrap_near};
 
 use crate::abi::{AF_X, AF_Y, AF_Z, Move, StepperKinematics};
 
@@ -103,22 +103,16 @@ impl Solver {
     }
 }
 
-/// Within this distance of the centre (mm), a point on a move through the centre takes its bed angle from the
-/// move's direction, not from its own coordinates: their rounding (about 1e-16 of coordinates below a metre) would
-/// turn `atan2` by up to half a turn right at the centre, a burst of steps the MCU cannot take. Here it turns the
-/// angle by at most 1e-10 rad, and a line that misses the centre by `RADIAL_ROUNDING` by at most 1e-6 rad.
-const NEAR_CENTRE: f64 = 1e-3;
-
 /// The bed angle at `(x, y)` on move `m` near the polar centre: `Some(None)` where the bed holds its reading (within
 /// rounding of the centre, where a move ends or starts on it; or at rest near it), `Some(Some(angle))` on a move
-/// through the centre (within [`RADIAL_ROUNDING`]) within [`NEAR_CENTRE`] of it: the angle of the side the point is
+/// through the centre (within [`RADIAL_ROUNDING`]) within [`CENTRE_DIRECTION_RADIUS`] of it: the angle of the side the point is
 /// on (before the centre: opposite to the direction of travel; past it: along it), `None` elsewhere (the point's own
 /// angle is exact enough).
 #[inline]
 fn radial_side_angle(m: &Move, x: f64, y: f64) -> Option<Option<f64>> {
     let distance2 = x * x + y * y;
     // Written so that NaN (a move with a non-finite point) takes the plain path, which never returns NaN.
-    if distance2.is_nan() || distance2 >= NEAR_CENTRE * NEAR_CENTRE {
+    if distance2.is_nan() || distance2 >= CENTRE_DIRECTION_RADIUS * CENTRE_DIRECTION_RADIUS {
         return None;
     }
     let [rx, ry, _] = m.axes_r;

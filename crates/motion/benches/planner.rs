@@ -2,7 +2,7 @@
 //! Uses the end-to-end bench file from `../shared/bench` when present, else a generated print.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use motion::machine::MachineSetup;
+use machine::MachineSetup;
 use printjob::plan_gcode;
 use std::hint::black_box;
 use std::path::Path;

@@ -9,7 +9,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("usage: plan_csv printer.cfg input.gcode [--kalico]".into());
     };
     let machine = config::MachineConfig::load(cfg)?;
-    let mut setup = motion::machine::MachineSetup::from_config(&machine)?;
+    let mut setup = machine::MachineSetup::from_config(&machine)?;
     setup.planner.klipper_batch_flush = !args.iter().any(|a| a == "--lookahead-only");
     if args.iter().any(|a| a == "--kalico") {
         setup.planner.apply_z_limits = false;

@@ -1,8 +1,9 @@
 //! Motion planning with Klipper's semantics: moves from G-code commands, junction speeds, lookahead, and
 //! trapezoid moves with print times handed to a [`trapq::MoveSink`].
 //!
-//! The arithmetic follows Klipper's toolhead closely enough that planned moves agree with Klipper's to
-//! about 1e-15 relative (checked against `../shared/golden`). Kinematic checks use the whole segment.
+//! The arithmetic follows Klipper's toolhead operation for operation, so planned moves are the same doubles as
+//! Klipper's (every golden case of `../shared/golden`, compared bit for bit). Kinematic checks use the whole
+//! segment. The machine a planner plans for is built by the `machine` crate.
 
 pub mod arcs;
 mod centre;
@@ -10,7 +11,6 @@ pub mod driver;
 pub mod kinematic_limits;
 pub mod limits;
 pub mod lookahead;
-pub mod machine;
 pub mod toolhead;
 
 pub use driver::{PlanError, PlanErrorKind, Planner, Warning};

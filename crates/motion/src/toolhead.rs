@@ -164,10 +164,18 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
     /// Finish: plan and hand over every queued move (a stop after the last one).
     pub fn finish(mut self) -> Result<(S, f64, SlowMoves), SinkError> {
         self.flush_lookahead();
-        self.sink.flush(self.print_time);
+        let flushed = self.sink.flush(self.print_time);
+        self.note_sink(flushed);
         match self.sink_error {
             Some(e) => Err(e),
             None => Ok((self.sink, self.print_time, self.slow_moves)),
+        }
+    }
+
+    /// Keep the sink's first error: planning stops at the command that met it.
+    fn note_sink(&mut self, result: Result<(), SinkError>) {
+        if self.sink_error.is_none() {
+            self.sink_error = result.err();
         }
     }
 
@@ -449,7 +457,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         if let Some(turn) = self.config.centre_turn {
             self.note_bed_ray(&turn);
         }
-        self.sink.set_position(xyz, self.commanded_pos[3]);
+        let declared = self.sink.set_position(xyz, self.commanded_pos[3]);
+        self.note_sink(declared);
     }
 
     /// In batch mode: Klipper read another 4096-byte block of input, and its reactor ran due timers first.
@@ -581,7 +590,8 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             self.lookahead.release(count);
             self.print_time = self.print_time.max(next_move_time);
             self.note_motion_queued(next_move_time);
-            self.sink.flush(self.print_time);
+            let flushed = self.sink.flush(self.print_time);
+            self.note_sink(flushed);
         }
     }
 }

@@ -6,11 +6,11 @@ use std::io::BufReader;
 use std::path::Path;
 
 use kinematics::{Kinematics, MotorUnit};
-use motion::machine::MachineSetup;
+use machine::MachineSetup;
 use stepgen::{StepProblem, net_agrees};
 
-use crate::machine::{Machine, PlanOptions};
 use crate::plan::plan_gcode;
+use machine::{Machine, PlanOptions};
 
 /// A step stream a real MCU could not execute.
 #[derive(Debug, Clone, PartialEq)]

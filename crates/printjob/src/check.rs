@@ -5,11 +5,11 @@ use std::io::BufRead;
 use std::path::Path;
 
 use gcode::Span;
-use motion::machine::MachineSetup;
+use machine::MachineSetup;
 
-use crate::machine::{Machine, PlanOptions};
 use crate::plan::{line_start, start};
 use crate::run::{RunError, RunOptions, run};
+use machine::{Machine, PlanOptions};
 
 /// One problem found by [`check_gcode`].
 #[derive(Debug, Clone, PartialEq)]

@@ -6,7 +6,7 @@
 
 pub mod audit;
 mod check;
-mod machine;
+
 mod moves_file;
 mod plan;
 mod run;

@@ -3,7 +3,7 @@
 use std::io::BufRead;
 
 use gcode::{Commands, GcodeError};
-use motion::machine::MachineSetup;
+use machine::MachineSetup;
 use motion::{PlanError, Planner, SlowMoves, Toolhead, Warning};
 use trapq::{MoveSink, SinkError};
 

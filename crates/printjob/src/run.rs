@@ -13,9 +13,9 @@ use stepgen::{
 };
 
 use crate::audit::{AuditedMotor, StepStreamError, first_problem, period_of};
-use crate::machine::{Machine, PlanOptions};
 use crate::moves_file::MovesFile;
 use crate::plan::{PipelineError, PlanSummary, plan_gcode};
+use machine::{Machine, PlanOptions};
 
 /// What a run needs besides the machine and the G-code.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,7 +54,19 @@ pub enum RunError {
     #[error(transparent)]
     StepFile(#[from] StepFileError),
     #[error("step generation failed: {0}")]
-    StepGen(#[from] stepgen::StepError),
+    StepGen(stepgen::StepError),
+    /// `cancelled` turned true: the run stopped and wrote nothing.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+impl From<stepgen::StepError> for RunError {
+    fn from(e: stepgen::StepError) -> Self {
+        match e {
+            stepgen::StepError::Cancelled => RunError::Cancelled,
+            other => RunError::StepGen(other),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]

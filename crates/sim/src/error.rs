@@ -11,7 +11,7 @@ pub enum SimulationError {
     #[error(transparent)]
     Config(#[from] config::ConfigError),
     #[error("believed machine: {0}")]
-    Setup(#[from] motion::machine::SetupError),
+    Setup(#[from] ::machine::SetupError),
     #[error(transparent)]
     Plan(#[from] printjob::PipelineError),
     #[error("step generation: {0}")]

@@ -16,8 +16,8 @@ use crate::error::SimulationError;
 use crate::machine::Machine;
 use crate::metrics::{Analysis, DeviationStats, LayerStats, PathPoint, Sample, segment_distance};
 use crate::motor::MotorTrack;
+use ::machine::MachineSetup;
 use kinematics::Kinematics;
-use motion::machine::MachineSetup;
 use printjob::{PipelineError, plan_gcode};
 use std::collections::VecDeque;
 use std::io::BufRead;
@@ -497,13 +497,16 @@ impl MoveSink for Recorder<'_> {
         }
     }
 
-    fn set_position(&mut self, xyz: Vec3, _e: f64) {
-        if self.error.is_some() {
-            return;
+    fn set_position(&mut self, xyz: Vec3, _e: f64) -> Result<(), SinkError> {
+        if self.error.is_none() {
+            let result = self.flush_all().and_then(|()| self.start_at(xyz));
+            if let Err(e) = result {
+                self.fail(e);
+            }
         }
-        let result = self.flush_all().and_then(|()| self.start_at(xyz));
-        if let Err(e) = result {
-            self.fail(e);
+        match self.error.take() {
+            Some(e) => Err(SinkError::new(e)),
+            None => Ok(()),
         }
     }
 }

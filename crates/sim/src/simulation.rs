@@ -6,7 +6,6 @@ use crate::features::{CircleFeature, QuadFeature, find_circles, find_quads};
 use crate::machine::Machine;
 use crate::replay::{Replay, ReplayOptions, replay};
 use config::MachineConfig;
-use motion::machine::MachineSetup;
 use std::io::BufRead;
 
 /// One simulation: the replay and the features measured on it.
@@ -25,8 +24,9 @@ pub fn simulate(
     source_name: &str,
     options: &ReplayOptions,
 ) -> Result<Simulation, SimulationError> {
-    let setup = MachineSetup::from_config(believed)?;
-    let replay = replay(&setup, actual, gcode, source_name, options)?;
+    // Built by the one machine builder, as `jointspace run` and the plug-in build it.
+    let believed = ::machine::Machine::from_config(believed.clone(), source_name)?;
+    let replay = replay(&believed.setup, actual, gcode, source_name, options)?;
     let circles = find_circles(&replay.path);
     let quads = find_quads(&replay.path);
     Ok(Simulation {

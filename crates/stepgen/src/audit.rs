@@ -154,10 +154,11 @@ impl trapq::MoveSink for ExpectedTravel<'_> {
         Ok(())
     }
 
-    fn set_position(&mut self, xyz: Vec3, _e: f64) {
+    fn set_position(&mut self, xyz: Vec3, _e: f64) -> Result<(), trapq::SinkError> {
         self.close_stretch();
         self.declared += 1;
         self.stretch_start = Some(xyz);
+        Ok(())
     }
 }
 

@@ -6,13 +6,16 @@
 //! extruder, polar arm and bed), SCARA joints are solved one motor at a time from the arm's geometry, other
 //! motors use a bracketed solver over [`kinematics::Kinematics`].
 //!
-//! Entry points: [`StepPipeline`] (a `trapq::MoveSink` for the planner), [`StepGenerator`] (all motors,
-//! parallel over motors, chunks of pieces) or [`MotorStepper`] (one motor); steps go to a [`StepSink`] per
-//! motor ([`StepFileWriter`], [`StepStats`], `Vec<Step>`, ...), deterministically whatever the thread count.
+//! Entry points: [`run_in_parallel`] (what `printjob::run` uses: planning on the calling thread, every motor on a
+//! thread of its own over shared chunks), [`StepPipeline`] (a `trapq::MoveSink` stepping all motors chunk by chunk on
+//! the caller's thread and rayon's), [`StepGenerator`] (the simulator's replay and the benches: chunks of pieces) or
+//! [`MotorStepper`] (one motor); steps go to a [`StepSink`] per motor ([`StepFileWriter`], [`StepStats`],
+//! `Vec<Step>`, ...), deterministically whatever the thread count.
 //!
-//! A move passing exactly through the polar rotation centre is refused with
-//! [`StepError::ThroughCentre`] (the bed angle is undefined there; Klipper fails too); passes any distance
-//! away, however small, are solved exactly (bed steps may then share a clock tick).
+//! A polar bed turning in place at the centre is a `Motion::BedTurn` piece; a line that misses the centre only by
+//! rounding (`kinematics::RADIAL_ROUNDING`) is taken as radial, and one that crosses the centre is refused with
+//! [`StepError::ThroughCentre`] (the planner never makes one: it cuts such passes at the centre). Every other pass,
+//! however close, is solved exactly; the step audit (`StepStats::audited`) then says whether an MCU could run it.
 
 mod audit;
 mod error;

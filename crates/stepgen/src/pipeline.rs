@@ -134,19 +134,22 @@ impl<S: StepSink + Send> MoveSink for StepPipeline<'_, S> {
         }
     }
 
-    fn set_position(&mut self, xyz: Vec3, e: f64) {
+    fn set_position(&mut self, xyz: Vec3, e: f64) -> Result<(), SinkError> {
         self.run_buffered();
         self.finish_generator();
-        if self.error.is_some() {
-            return;
+        if self.error.is_none() {
+            let extruder = self.extruder.clone().map(|spec| ExtruderSpec {
+                start_position: e,
+                ..spec
+            });
+            match StepGenerator::new(self.kin, xyz, extruder, self.config) {
+                Ok(generator) => self.generator = Some(generator),
+                Err(e) => self.error = Some(e),
+            }
         }
-        let extruder = self.extruder.clone().map(|spec| ExtruderSpec {
-            start_position: e,
-            ..spec
-        });
-        match StepGenerator::new(self.kin, xyz, extruder, self.config) {
-            Ok(generator) => self.generator = Some(generator),
-            Err(e) => self.error = Some(e),
+        match &self.error {
+            Some(e) => Err(SinkError::new(e.to_string())),
+            None => Ok(()),
         }
     }
 }
@@ -252,9 +255,13 @@ impl MoveSink for ChunkSender {
         }
     }
 
-    fn set_position(&mut self, xyz: Vec3, e: f64) {
+    fn set_position(&mut self, xyz: Vec3, e: f64) -> Result<(), SinkError> {
         self.send_buffered();
         self.send(&Message::SetPosition { xyz, e });
+        match self.closed {
+            true => Err(SinkError::new("a motor's step generation stopped")),
+            false => Ok(()),
+        }
     }
 }
 

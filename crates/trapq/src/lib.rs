@@ -241,11 +241,16 @@ pub trait MoveSink {
     /// places keep it; the rest ignore it.
     #[inline]
     fn origin(&mut self, _origin: u64) {}
-    /// Every move that starts before `print_time` has been appended: consumers may finish work up to it.
-    fn flush(&mut self, _print_time: f64) {}
+    /// Every move that starts before `print_time` has been appended: consumers may finish work up to it. An error
+    /// stops the planner as an append's does.
+    fn flush(&mut self, _print_time: f64) -> Result<(), SinkError> {
+        Ok(())
+    }
     /// The toolhead was declared to be at `xyz` without moving (homing, `SET_KINEMATIC_POSITION`), after every
-    /// earlier move was appended; `e` is the extruder position.
-    fn set_position(&mut self, _xyz: Vec3, _e: f64) {}
+    /// earlier move was appended; `e` is the extruder position. An error stops the planner as an append's does.
+    fn set_position(&mut self, _xyz: Vec3, _e: f64) -> Result<(), SinkError> {
+        Ok(())
+    }
 }
 
 /// A closure that takes every move and never fails (tests, quick collectors).
@@ -276,14 +281,16 @@ impl<S: MoveSink> MoveSink for Option<S> {
             sink.origin(origin);
         }
     }
-    fn flush(&mut self, print_time: f64) {
-        if let Some(sink) = self {
-            sink.flush(print_time);
+    fn flush(&mut self, print_time: f64) -> Result<(), SinkError> {
+        match self {
+            Some(sink) => sink.flush(print_time),
+            None => Ok(()),
         }
     }
-    fn set_position(&mut self, xyz: Vec3, e: f64) {
-        if let Some(sink) = self {
-            sink.set_position(xyz, e);
+    fn set_position(&mut self, xyz: Vec3, e: f64) -> Result<(), SinkError> {
+        match self {
+            Some(sink) => sink.set_position(xyz, e),
+            None => Ok(()),
         }
     }
 }
@@ -299,13 +306,13 @@ impl<A: MoveSink, B: MoveSink> MoveSink for (A, B) {
         self.0.origin(origin);
         self.1.origin(origin);
     }
-    fn flush(&mut self, print_time: f64) {
-        self.0.flush(print_time);
-        self.1.flush(print_time);
+    fn flush(&mut self, print_time: f64) -> Result<(), SinkError> {
+        self.0.flush(print_time)?;
+        self.1.flush(print_time)
     }
-    fn set_position(&mut self, xyz: Vec3, e: f64) {
-        self.0.set_position(xyz, e);
-        self.1.set_position(xyz, e);
+    fn set_position(&mut self, xyz: Vec3, e: f64) -> Result<(), SinkError> {
+        self.0.set_position(xyz, e)?;
+        self.1.set_position(xyz, e)
     }
 }
 

@@ -7,9 +7,9 @@ use convert::{
     Segmentation, Target,
 };
 use kinematics::MachineParams;
+use printjob::Machine;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum To {
@@ -139,13 +139,7 @@ impl From<miette::Report> for Failure {
 
 fn convert_file(args: Args) -> Result<ExitCode, Failure> {
     let machine = crate::machine::load_machine(&args.config)?;
-    let mut options = options(&args)?;
-    // The machine starts where homing leaves it; without a homing pose nothing unknown is guessed.
-    options.home = machine.setup.home_position;
-    // The motors' speed limits as the planner applies them (angular/joint limits, step rates): every written
-    // segment takes at least each limited motor's travel over its limit.
-    options.motor_limits = crate::machine::convert_limits(&machine.setup);
-    let map = axis_map(&args, &machine.config.params)?;
+    let (map, options) = axis_map(&args, &machine)?;
     if args.verify && output::is_stdio(&args.file) {
         return Err(
             miette::miette!("--verify re-reads the input: give it as a file, not `-`").into(),
@@ -459,41 +453,31 @@ fn options(args: &Args) -> miette::Result<ConvertOptions> {
     Ok(options)
 }
 
-/// The output axes: the configured machine's motors, or a corrected polar machine's.
-fn axis_map(args: &Args, params: &MachineParams) -> miette::Result<AxisMap> {
+/// The output axes and the options: the configured machine's motors (the job every conversion shares), or a
+/// corrected polar machine's.
+fn axis_map(args: &Args, machine: &Machine) -> miette::Result<(AxisMap, ConvertOptions)> {
     let fail = |e: convert::ConvertError| miette::miette!("{e}");
     let correction = centre_correction(args)?;
-    match (params, correction, args.to) {
-        (MachineParams::Polar(p), Some(c), To::Cartesian) => c.cartesian_map(p).map_err(fail),
-        (MachineParams::Polar(p), Some(c), to) => {
-            let target = if to == To::Joints {
-                Target::Joints
-            } else {
-                Target::Cylindrical
-            };
-            c.motor_map(p, target).map_err(fail)
-        }
+    let polar = matches!(machine.config.params, MachineParams::Polar(_));
+    if !polar && (correction.is_some() || args.to == To::Cartesian) {
+        return Err(miette::miette!(
+            "centre correction and --to cartesian need a polar machine"
+        ));
+    }
+    let (map, options) = crate::machine::convert_job(machine, options(args)?).map_err(fail)?;
+    let corrected = match (&machine.config.params, correction, args.to) {
+        (MachineParams::Polar(p), Some(c), To::Cartesian) => c.cartesian_map(p).map_err(fail)?,
+        (MachineParams::Polar(p), Some(c), _) => c.motor_map(p, options.target).map_err(fail)?,
         (MachineParams::Polar(p), None, To::Cartesian) => {
             let c = CentreCorrection {
                 arm_zero_offset: p.arm_zero_offset,
                 arm_lateral_offset: p.arm_lateral_offset,
             };
-            c.cartesian_map(p).map_err(fail)
+            c.cartesian_map(p).map_err(fail)?
         }
-        (_, Some(_), _) | (_, None, To::Cartesian) => Err(miette::miette!(
-            "centre correction and --to cartesian need a polar machine"
-        )),
-        (params, None, to) => {
-            let kin: Arc<dyn kinematics::Kinematics> =
-                Arc::from(kinematics::build(params).map_err(|e| miette::miette!("{e}"))?);
-            let target = if to == To::Joints {
-                Target::Joints
-            } else {
-                Target::Cylindrical
-            };
-            AxisMap::motors(kin, target).map_err(fail)
-        }
-    }
+        _ => map,
+    };
+    Ok((corrected, options))
 }
 
 /// `dx,dy`: two finite numbers (mm).

@@ -86,7 +86,6 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     write_atomically(&print_path, |w| Ok(w.write_all(gcode.as_bytes())?)).map_err(super::plain)?;
 
     let machine = load_machine(&config_path)?;
-    let home = machine.setup.home_position;
     let mut section = format!("== {} printer ({})\n", example.name, config_path.display());
     let summary = printjob::run(
         &machine,
@@ -103,39 +102,27 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     let figures = maps::map_and_draw(&machine.config.params, 2.0, &dir, "workspace")?;
     section += &report::workspace(&figures);
     if let Some(target) = example.convert_to {
-        let limits = crate::machine::convert_limits(&machine.setup);
-        section += &demo_conversion(
-            &machine.config,
-            (home, limits),
-            &gcode,
-            &print_path,
-            &dir,
-            target,
-        )?;
+        section += &demo_conversion(&machine, &gcode, &print_path, &dir, target)?;
     }
     let _ = writeln!(section);
     Ok(section)
 }
 
-/// Convert the test print for firmware without the machine's kinematics, and verify the result.
+/// Convert the test print for firmware without the machine's kinematics (the job `convert` assembles), and verify
+/// the result.
 fn demo_conversion(
-    machine: &config::MachineConfig,
-    (home, motor_limits): (Option<[f64; 3]>, Vec<convert::MotorLimit>),
+    machine: &printjob::Machine,
     gcode: &str,
     print_path: &Path,
     dir: &Path,
     target: convert::Target,
 ) -> miette::Result<String> {
-    let kin: std::sync::Arc<dyn kinematics::Kinematics> = std::sync::Arc::from(
-        kinematics::build(&machine.params).map_err(|e| miette::miette!("{e}"))?,
-    );
-    let map = convert::AxisMap::motors(kin, target).map_err(|e| miette::miette!("{e}"))?;
     let options = convert::ConvertOptions {
         target,
-        home,
-        motor_limits,
         ..Default::default()
     };
+    let (map, options) =
+        crate::machine::convert_job(machine, options).map_err(|e| miette::miette!("{e}"))?;
     let name = print_path.display().to_string();
     let mut converter = convert::Converter::new(map.clone(), options.clone(), Vec::new())
         .map_err(|e| miette::miette!("{e}"))?;
@@ -154,7 +141,7 @@ fn demo_conversion(
         .map_err(|e| miette::miette!("{e}"))?;
     Ok(format!(
         "conversion for firmware without {} kinematics ({}): {} moves → {} segments\n  {}\n",
-        machine.kinematics.name(),
+        machine.config.kinematics.name(),
         out_path.display(),
         stats.moves,
         stats.segments,

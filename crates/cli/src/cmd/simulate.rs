@@ -94,9 +94,9 @@ fn print_stdout(text: &str) -> miette::Result<()> {
     }
 }
 
+/// Both configs as every command reads them: their warnings shown, unknown keys refused.
 fn load_config(path: &Path) -> miette::Result<config::MachineConfig> {
-    crate::output::register_input(path);
-    config::MachineConfig::load(path).map_err(|e| miette::Report::new(diag::config_error(&e)))
+    crate::machine::read_config(path)
 }
 
 fn simulate_file(

@@ -9,6 +9,7 @@ mod determinism;
 mod fuzz_regressions;
 mod host;
 mod interrupt;
+mod invariants;
 mod json;
 mod limits;
 mod output;

@@ -8,12 +8,12 @@ use std::path::{Path, PathBuf};
 const MAX_FILE_LINES: usize = 800;
 const MAX_FN_LINES: usize = 80;
 
-fn crates_dir() -> PathBuf {
+pub(crate) fn crates_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 /// Every `.rs` file below `dir`.
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+pub(crate) fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
@@ -28,11 +28,16 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
 }
 
 /// The source without comments, string contents and `#[cfg(test)]` items, line by line.
-fn code_lines(text: &str) -> Vec<String> {
+pub(crate) fn code_lines(text: &str) -> Vec<String> {
+    code_lines_with(text, false)
+}
+
+/// The source without comments and `#[cfg(test)]` items, line by line; string literals kept when `keep_strings`.
+pub(crate) fn code_lines_with(text: &str, keep_strings: bool) -> Vec<String> {
     let mut lines = Vec::new();
     let mut skipping: Option<(i64, bool)> = None;
     for raw in text.lines() {
-        let line = strip_comment_and_strings(raw);
+        let line = strip_comment_and_strings(raw, keep_strings);
         if let Some((depth, opened)) = &mut skipping {
             *depth += braces(&line);
             *opened |= line.contains('{');
@@ -51,7 +56,7 @@ fn code_lines(text: &str) -> Vec<String> {
     lines
 }
 
-fn strip_comment_and_strings(line: &str) -> String {
+fn strip_comment_and_strings(line: &str, keep_strings: bool) -> String {
     let mut out = String::with_capacity(line.len());
     let mut in_string = false;
     let mut chars = line.chars().peekable();
@@ -63,12 +68,15 @@ fn strip_comment_and_strings(line: &str) -> String {
                 out.push('"');
             }
             (true, '\\') => {
-                chars.next();
+                if let Some(escaped) = chars.next().filter(|_| keep_strings) {
+                    out.extend(['\\', escaped]);
+                }
             }
             (true, '"') => {
                 in_string = false;
                 out.push('"');
             }
+            (true, c) if keep_strings => out.push(c),
             (true, _) => {}
             (false, c) => out.push(c),
         }

@@ -24,7 +24,7 @@ use std::io::Write;
 
 use gcode::CommandWord;
 use gcode::command::{Arc as ArcMove, Command, Move, Span, Spanned};
-use kinematics::{MotorUnit, ReachError, SegmentError};
+use kinematics::{CENTRE_TURN_GAP, MotorUnit, ReachError, SegmentError};
 
 use crate::axes::AxisMap;
 use crate::error::ConvertError;
@@ -41,13 +41,6 @@ use checks::{
     check_feed, check_magnitudes, is_consumed_mode, is_mode_command, passes_through, validate, xyz,
 };
 
-/// Distance (mm) kept from the exact polar centre, where the bed angle is undefined: where a move through
-/// the centre stops and turns in place. Not the machine's centre tolerance
-/// ([`kinematics::RotationCentre::tolerance`], which decides which paths meet the centre, in
-/// [`Converter::centre_snap`]): the turn sweeps a half circle of this radius about the centre, so this much is
-/// a path deviation, and the kinematics' tolerance (up to 5 µm, half an arm step) would use the whole default
-/// `--tolerance` of 5 µm, and more than a finer one. At 0.1 µm it stays far below any tolerance.
-const CENTRE_GAP: f64 = 1e-7;
 /// Share of the tolerance the probe check may use (the rest covers probe sampling and rounding).
 const PROBE_MARGIN: f64 = 0.9;
 
@@ -433,7 +426,7 @@ impl<W: Write> Converter<W> {
         feed: f64,
     ) -> Result<(), ConvertError> {
         check_feed(span, feed)?;
-        let gap = (CENTRE_GAP / path.xy_length()).min(0.5);
+        let gap = (CENTRE_TURN_GAP / path.xy_length()).min(0.5);
         let mut s = 0.0;
         if self.at_centre || crossing.is_some_and(|t| t <= gap) {
             s = gap;
@@ -468,7 +461,7 @@ impl<W: Write> Converter<W> {
         self.axes = to;
         self.at_centre = false;
         // A machine without rotary output axes (corrected Cartesian) only crosses the gap.
-        let time = (turn / self.options.flip_speed).max(2.0 * CENTRE_GAP / feed);
+        let time = (turn / self.options.flip_speed).max(2.0 * CENTRE_TURN_GAP / feed);
         let z = path.point(s)[2];
         let e_units = self.written.e;
         if self.write_motion(to, z, e_units, time, feed)? {

@@ -7,11 +7,12 @@ use std::io::Write;
 use gcode::command::{Move, Span};
 use kinematics::ReachError;
 
+use super::Converter;
 use super::checks::{check_feed, xyz};
-use super::{CENTRE_GAP, Converter};
 use crate::error::ConvertError;
 use crate::format::{feed_decimals, scale, to_units};
 use crate::options::{Extrusion, FeedMode};
+use kinematics::CENTRE_TURN_GAP;
 
 impl<W: Write> Converter<W> {
     /// A move without XY motion (Z only, E only): one line, planar axes unchanged.
@@ -52,7 +53,7 @@ impl<W: Write> Converter<W> {
             Err(ReachError::AtCentre { .. }) => {
                 self.at_centre = true;
                 self.map
-                    .to_axes([p[0] + CENTRE_GAP, p[1], p[2]], self.axes)
+                    .to_axes([p[0] + CENTRE_TURN_GAP, p[1], p[2]], self.axes)
                     .map_err(|reason| ConvertError::Unreachable { span, reason })?
             }
             Err(reason) => return Err(ConvertError::Unreachable { span, reason }),

@@ -33,7 +33,7 @@ pub fn corpus_files() -> Vec<(String, Vec<u8>)> {
         .map(|entries| entries.filter_map(Result::ok).map(|e| e.path()).collect())
         .unwrap_or_default();
     files.sort();
-    files
+    let read: Vec<(String, Vec<u8>)> = files
         .into_iter()
         .filter(|p| p.extension().is_some_and(|e| e == "gcode"))
         .filter_map(|p| {
@@ -42,8 +42,18 @@ pub fn corpus_files() -> Vec<(String, Vec<u8>)> {
                 std::fs::read(&p).ok()?,
             ))
         })
-        .collect()
+        .collect();
+    // A corpus loop over fewer files than the corpus holds would pass by not looking.
+    assert!(
+        read.len() >= CORPUS_FILES,
+        "{} corpus files read, the corpus holds {CORPUS_FILES}",
+        read.len()
+    );
+    read
 }
+
+/// How many G-code files `../shared/corpus` holds.
+const CORPUS_FILES: usize = 10;
 
 /// XY bounding box `(min, max)` of all move targets.
 pub fn bounding_box(commands: &[Command]) -> ([f64; 2], [f64; 2]) {

@@ -12,6 +12,11 @@ use std::path::PathBuf;
 pub fn corpus_files() -> Option<Vec<PathBuf>> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/corpus");
     let Ok(entries) = std::fs::read_dir(&dir) else {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "{} is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)",
+            dir.display()
+        );
         println!("SKIPPED: corpus directory {} not found", dir.display());
         return None;
     };
@@ -21,6 +26,12 @@ pub fn corpus_files() -> Option<Vec<PathBuf>> {
         .filter(|p| p.extension().is_some_and(|e| e == "gcode"))
         .collect();
     files.sort();
+    // A corpus loop over fewer files than the corpus holds would pass by not looking.
+    assert!(
+        files.len() >= 10,
+        "{} corpus files, the corpus holds 10",
+        files.len()
+    );
     Some(files)
 }
 

@@ -1,7 +1,7 @@
 //! Motor limits beyond Klipper: a polar bed's angular speed and acceleration near the centre, measured from the
 //! generated steps (not from the planner's own numbers).
 
-use motion::machine::MachineSetup;
+use machine::MachineSetup;
 use printjob::plan_gcode;
 use stepgen::{Step, StepGenConfig, StepGenerator};
 use trapq::{Piece, Queue, TrapezoidMove};

@@ -6,7 +6,7 @@
 
 use std::f64::consts::TAU;
 
-use motion::machine::MachineSetup;
+use machine::MachineSetup;
 use stepgen::Step;
 
 use crate::limits::plan_and_step;

@@ -1,6 +1,8 @@
 //! The assembled job against independent references: step files read back as an MCU would execute them, checked
 //! against the closed-form motor positions; problems at their G-code lines; outputs never over inputs.
 
+mod digests;
+
 use std::path::{Path, PathBuf};
 
 use printjob::{Machine, RunError, RunOptions, Severity};
@@ -133,7 +135,7 @@ fn a_cancelled_run_fails_and_writes_nothing() {
     };
     let err = printjob::run(&machine, gcode.as_bytes(), "in.gcode", &options, || true)
         .expect_err("cancelled");
-    assert!(matches!(err, RunError::StepGen(_)), "{err}");
+    assert!(matches!(err, RunError::Cancelled), "{err}");
     assert!(!dir.path().join("moves.csv").exists());
     let written: Vec<_> = std::fs::read_dir(dir.path().join("steps"))
         .expect("dir")

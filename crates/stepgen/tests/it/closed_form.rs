@@ -307,7 +307,9 @@ fn pipeline_writes_step_files_and_statistics() {
     let mut pipeline =
         stepgen::StepPipeline::new(kin.as_ref(), None, StepGenConfig::default(), sinks);
     assert_eq!(pipeline.motor_names(), names);
-    pipeline.set_position([0.0; 3], 0.0);
+    pipeline
+        .set_position([0.0; 3], 0.0)
+        .expect("the sink takes the position");
     // 1 mm along X at 10 mm/s (80 steps 0.00125 s apart), then 1 mm back.
     pipeline
         .append(
@@ -361,7 +363,9 @@ fn pipeline_restarts_motors_at_a_declared_position() {
         StepGenConfig::default(),
         vec![Vec::new(); 3],
     );
-    pipeline.set_position([0.0; 3], 0.0);
+    pipeline
+        .set_position([0.0; 3], 0.0)
+        .expect("the sink takes the position");
     pipeline
         .append(
             Queue::Toolhead,
@@ -369,7 +373,9 @@ fn pipeline_restarts_motors_at_a_declared_position() {
         )
         .expect("the sink takes the move");
     // X is declared to be 5 (no motion), then moves on from there: no burst of steps for the jump.
-    pipeline.set_position([5.0, 0.0, 0.0], 0.0);
+    pipeline
+        .set_position([5.0, 0.0, 0.0], 0.0)
+        .expect("the sink takes the position");
     pipeline
         .append(
             Queue::Toolhead,
@@ -470,11 +476,13 @@ fn threaded_pipeline_gives_the_sequential_pipelines_steps() {
         (Queue::Extruder, mv) => (second_half[1].1.start_pos, mv.start_pos[0] + 0.1),
     };
     let feed = |sink: &mut dyn MoveSink| {
-        sink.set_position([30.0, 0.0, 0.0], 0.0);
+        sink.set_position([30.0, 0.0, 0.0], 0.0)
+            .expect("the sink takes the position");
         for (queue, mv) in first_half {
             sink.append(*queue, mv).expect("the sink takes the move");
         }
-        sink.set_position(restart.0, restart.1);
+        sink.set_position(restart.0, restart.1)
+            .expect("the sink takes the position");
         for (queue, mv) in second_half {
             sink.append(*queue, mv).expect("the sink takes the move");
         }
@@ -530,7 +538,8 @@ fn a_failing_step_sink_stops_the_run_early() {
         sinks,
         || false,
         |mut sender| {
-            sender.set_position([0.0; 3], 0.0);
+            // A failed or cancelled motor may refuse it; the feed goes on, as a planner that did not stop.
+            let _ = sender.set_position([0.0; 3], 0.0);
             // 10 mm per move back and forth in X: 800 X steps a move; a million moves if nothing stopped it.
             for i in 0..1_000_000 {
                 let (start, dir) = match i % 2 {
@@ -577,7 +586,8 @@ fn threaded_pipeline_reports_moves_before_a_declared_position() {
         vec![Vec::<Step>::new(); 3],
         || true,
         |mut sender| {
-            sender.set_position([0.0; 3], 0.0);
+            // A failed or cancelled motor may refuse it; the feed goes on, as a planner that did not stop.
+            let _ = sender.set_position([0.0; 3], 0.0);
             sender.append(
                 Queue::Toolhead,
                 &cruise(1.0, 0.1, [0.0; 3], [1.0, 0.0, 0.0], 10.0),
@@ -599,14 +609,16 @@ fn threaded_pipeline_reports_the_earliest_failure() {
         start_position: 0.0,
     };
     let feed = |sink: &mut dyn MoveSink| {
-        sink.set_position([0.0; 3], 0.0);
+        // A failed or cancelled motor may refuse it; the feed goes on, as a planner that did not stop.
+        let _ = sink.set_position([0.0; 3], 0.0);
         // Only the extruder fails here (its piece starts at a non-finite position)… (Once a motor has failed
         // the sink may refuse further moves; the moves are fed on regardless, as a planner that did not stop.)
         let _ = sink.append(
             Queue::Extruder,
             &cruise(1.0, 0.1, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], 1.0),
         );
-        sink.set_position([0.0; 3], 0.0);
+        // A failed or cancelled motor may refuse it; the feed goes on, as a planner that did not stop.
+        let _ = sink.set_position([0.0; 3], 0.0);
         // …and the toolhead motors only later.
         let _ = sink.append(
             Queue::Toolhead,

@@ -2,8 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::setup::{MachineSetup, SetupError};
 use config::{ConfigError, ConfigWarning, MachineConfig};
-use motion::machine::{MachineSetup, SetupError};
 
 /// The configuration as read and the machine built from it.
 #[derive(Debug)]
@@ -45,6 +45,16 @@ impl Machine {
                 }
             })?;
         Ok((machine, notes))
+    }
+
+    /// Build the machine from printer.cfg text named `source` (includes already resolved: the fuzz targets, the
+    /// plug-in where Klipper has no file).
+    pub fn from_text(text: &str, source: &str) -> Result<Machine, LoadError> {
+        let config = MachineConfig::from_str(text, source)?;
+        Machine::from_config(config, source).map_err(|source_error| LoadError::Setup {
+            path: PathBuf::from(source),
+            source: source_error,
+        })
     }
 
     /// Read `path`: the configuration and its notes, before the machine is built from it.

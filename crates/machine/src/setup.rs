@@ -1,9 +1,10 @@
 //! A machine ready to plan for: kinematics, planner limits and the homing pose, built from `printer.cfg`.
 
-use crate::kinematic_limits::MotorLimit;
-use crate::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
 use config::MachineConfig;
-use kinematics::{Kinematics, MotorUnit, TurningLimits};
+use kinematics::{Kinematics, MachineParams, MotorMap, MotorUnit, TurningLimits};
+use motion::kinematic_limits::MotorLimit;
+use motion::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
+use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// Why a machine could not be set up.
@@ -29,7 +30,7 @@ pub struct MachineSetup {
 
 impl MachineSetup {
     pub fn from_config(machine: &MachineConfig) -> Result<MachineSetup, SetupError> {
-        let kinematics: Arc<dyn Kinematics> = kinematics::build(&machine.params)
+        let kinematics: Arc<dyn Kinematics> = kinematics::build(&read_as_firmware(&machine.params))
             .map_err(|e| SetupError::Kinematics(e.to_string()))?
             .into();
         let limits = &machine.limits;
@@ -62,6 +63,19 @@ impl MachineSetup {
             home_position,
         })
     }
+}
+
+/// The machine's parameters as firmware reads its motors: a SCARA's shoulder angle in (−π, π] (atan2, as Marlin,
+/// the FEKT-SCARA module and the plug-in's step solvers take it). A move through ±π would turn the elbow motor by
+/// `2π·coupling` at one point, so the configured shoulder range is cut there and such a move is refused as a joint
+/// limit by every front-end alike.
+fn read_as_firmware(params: &MachineParams) -> MachineParams {
+    let mut params = params.clone();
+    if let MachineParams::Scara(p) = &mut params {
+        let (min, max) = p.shoulder_limits.unwrap_or((-PI, PI));
+        p.shoulder_limits = Some((min.max(-PI), max.min(PI)));
+    }
+    params
 }
 
 /// Motor limits from the config: polar bed (`max_angular_velocity`, `max_angular_accel`), SCARA joints
@@ -126,7 +140,7 @@ fn home_position(
     machine: &MachineConfig,
     kin: &dyn Kinematics,
 ) -> Result<Option<[f64; 3]>, SetupError> {
-    let z_endstop = endstop(machine, "stepper_z");
+    let z_endstop = z_motor(kin).and_then(|z| endstop(machine, &kin.motors()[z].name));
     if let Some(pose) = declared_home(machine, z_endstop) {
         return declared_pose(kin, pose).map(Some);
     }
@@ -147,6 +161,14 @@ fn home_position(
             reason: e.to_string(),
         })?;
     pose.map(|p| declared_pose(kin, p)).transpose()
+}
+
+/// The motor that moves Z alone (its position is the toolhead's Z), as the kinematics map it: the role comes from
+/// the machine, not from a stepper's name.
+fn z_motor(kin: &dyn Kinematics) -> Option<usize> {
+    (0..kin.motors().len()).find(
+        |&i| matches!(kin.motor_map(i), MotorMap::Linear { coeffs } if coeffs == [0.0, 0.0, 1.0]),
+    )
 }
 
 /// A stepper's `position_endstop`, in the file's unit.

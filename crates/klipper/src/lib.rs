@@ -209,6 +209,35 @@ pub extern "C" fn jointspace_machine_read_keys(m: *const Machine) -> *const c_ch
     })
 }
 
+/// The value the machine was built with for its `[printer]` geometry key `key` (a polar arm's `arm_zero_offset`,
+/// `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`) into `value`: 0, or −1
+/// when the machine has no such key. The plug-in asks here instead of reading the key a second time.
+///
+/// # Safety
+/// `key` is a NUL-terminated string; `value` points to a double.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_machine_value(
+    m: *const Machine,
+    key: *const c_char,
+    value: *mut f64,
+) -> c_int {
+    guarded(-1, NO_BUFFER, || {
+        if key.is_null() || value.is_null() {
+            return -1;
+        }
+        // SAFETY: per the contract (null is refused).
+        let key = unsafe { CStr::from_ptr(key) }.to_string_lossy();
+        match machine(m).and_then(|m| m.geometry_value(&key)) {
+            Some(v) => {
+                // SAFETY: value points to a double (null is refused).
+                unsafe { *value = v };
+                0
+            }
+            None => -1,
+        }
+    })
+}
+
 /// Number of motors of the machine (the order of every motor array below).
 #[unsafe(no_mangle)]
 pub extern "C" fn jointspace_motor_count(m: *const Machine) -> c_int {

@@ -377,6 +377,21 @@ impl Machine {
             Shape::Cartesian => None,
         }
     }
+
+    /// The value the machine was built with for one of its `[printer]` geometry keys (a polar arm's
+    /// `arm_zero_offset`, `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`), so
+    /// the plug-in never reads one a second time; `None` for a key this machine does not have.
+    pub fn geometry_value(&self, key: &str) -> Option<f64> {
+        match (&self.shape, key) {
+            (Shape::Polar(p), "arm_zero_offset") => Some(p.params().arm_zero_offset),
+            (Shape::Polar(p), "arm_lateral_offset") => Some(p.params().arm_lateral_offset),
+            (Shape::Scara(s), "link1_length") => Some(s.params().link1_length),
+            (Shape::Scara(s), "link2_length") => Some(s.params().link2_length),
+            (Shape::Scara(s), "offset_x") => Some(s.params().offset_x),
+            (Shape::Scara(s), "offset_y") => Some(s.params().offset_y),
+            _ => None,
+        }
+    }
 }
 
 /// `value` with three decimals, or as many more as it takes not to read as `limit`.

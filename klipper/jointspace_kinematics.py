@@ -57,10 +57,9 @@ class JointspaceKinematics:
         self.limit_z = (1.0, -1.0)
         self.joint_space = False  # True while homing moves in joint coordinates
         self.max_velocity, self.max_accel = toolhead.get_max_velocity()
-        self.max_z_velocity = config.getfloat("max_z_velocity", self.max_velocity, above=0.,
-                                              maxval=self.max_velocity)
-        self.max_z_accel = config.getfloat("max_z_accel", self.max_accel, above=0.,
-                                           maxval=self.max_accel)
+        # As the library read them (Klipper's defaults and bounds), not read a second time.
+        self.max_z_velocity = machine.value("max_z_velocity")
+        self.max_z_accel = machine.value("max_z_accel")
 
     def _attach(self, toolhead, rails, xy_reach):
         # Every stepper gets its motor's solver from the machine (extra Z steppers share stepper_z's).

@@ -257,8 +257,8 @@ class Machine:
 
     # -- what the machine was built with ----------------------------------------------------------
     def value(self, key):
-        """The value the machine was built with for its [printer] geometry key (offset_x, link1_length,
-        arm_zero_offset...), so the plug-in never reads a key a second time; None where it has no such key."""
+        """The value the machine was built with for a [printer] key (offset_x, link1_length, arm_zero_offset,
+        max_z_velocity...), so the plug-in never reads a key a second time; None where it has no such key."""
         if self.lib.jointspace_machine_value(self.handle, key.encode(), self._value):
             return None
         return self._value[0]

@@ -378,11 +378,14 @@ impl Machine {
         }
     }
 
-    /// The value the machine was built with for one of its `[printer]` geometry keys (a polar arm's
-    /// `arm_zero_offset`, `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`), so
-    /// the plug-in never reads one a second time; `None` for a key this machine does not have.
-    pub fn geometry_value(&self, key: &str) -> Option<f64> {
+    /// The value the machine was built with for one of its `[printer]` keys the plug-in needs (a polar arm's
+    /// `arm_zero_offset`, `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`; any
+    /// machine's `max_z_velocity`, `max_z_accel`), so the plug-in never reads one a second time; `None` for a key this
+    /// machine does not have.
+    pub fn printer_value(&self, key: &str) -> Option<f64> {
         match (&self.shape, key) {
+            (_, "max_z_velocity") => Some(self.setup.planner.max_z_velocity),
+            (_, "max_z_accel") => Some(self.setup.planner.max_z_accel),
             (Shape::Polar(p), "arm_zero_offset") => Some(p.params().arm_zero_offset),
             (Shape::Polar(p), "arm_lateral_offset") => Some(p.params().arm_lateral_offset),
             (Shape::Scara(s), "link1_length") => Some(s.params().link1_length),

@@ -4,8 +4,9 @@
 #   --host-dir DIR  the Klipper or Kalico checkout (default: ~/klipper)
 #   --uninstall     remove what install put there (the tree is left as it was)
 #   --no-build      skip `cargo build --release -p klipper` (the library must already be built)
-# Klipper: klippy/extras/jointspace.py (and jointspace_scan.py) are symlinks to this folder's files, listed in the
-# tree's .git/info/exclude so Moonraker does not report the repository as dirty. Kalico: klippy/plugins/.
+# Klipper: klippy/extras/jointspace.py and the jointspace_*.py modules it loads are symlinks to this folder's files,
+# listed in the tree's .git/info/exclude so Moonraker does not report the repository as dirty. Kalico:
+# klippy/plugins/.
 # The module finds libjointspace_klipper.so in this repository's target/release/.
 set -euo pipefail
 HERE=$(cd "$(dirname "$0")" && pwd)
@@ -25,8 +26,10 @@ done
 [ -f "$HOST_DIR/klippy/klippy.py" ] || { echo "install.sh: $HOST_DIR is not a Klipper or Kalico tree (no klippy/klippy.py)" >&2; exit 2; }
 HOST_DIR=$(cd "$HOST_DIR" && pwd)
 if [ -d "$HOST_DIR/klippy/plugins" ]; then DEST=klippy/plugins; else DEST=klippy/extras; fi
-# The modules Klipper loads: jointspace.py (from [jointspace]) and the helpers it imports from its own folder.
-MODULES=(jointspace.py jointspace_scan.py)
+# The modules Klipper loads: jointspace.py (from [jointspace]) and the helpers it loads from beside its real path
+# (linked too, so the host's folder shows the whole plug-in, and uninstall finds every link it made).
+MODULES=(jointspace.py jointspace_library.py jointspace_kinematics.py jointspace_splitter.py jointspace_commands.py
+         jointspace_scan.py)
 EXCLUDE_LINES=()
 for module in "${MODULES[@]}"; do
   EXCLUDE_LINES+=("$DEST/$module" "$DEST/__pycache__/${module%.py}.*")

@@ -21,6 +21,9 @@ struct jointspace_machine *jointspace_machine_new_from_file(const char *path, in
                                                             char *error, size_t error_len);
 void jointspace_machine_free(struct jointspace_machine *m);
 const char *jointspace_machine_read_keys(struct jointspace_machine *m);
+/* The value the machine was built with for a [printer] key (offset_x, link1_length, arm_zero_offset, max_z_velocity,
+ * max_z_accel...): 0, or -1 when it has no such key. The plug-in asks instead of reading the key a second time. */
+int jointspace_machine_value(struct jointspace_machine *m, const char *key, double *value);
 int jointspace_motor_count(struct jointspace_machine *m);
 const char *jointspace_motor_name(struct jointspace_machine *m, int index);
 

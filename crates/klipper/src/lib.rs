@@ -3,7 +3,7 @@
 //! Klipper generates steps by asking a per-stepper `struct stepper_kinematics` for the motor position at trial
 //! times (`klippy/chelper/itersolve.c`); this library allocates such structs with its own callbacks (the
 //! `kinematics` crate's geometry, plain data, reentrant, no allocation), and answers the plain questions the
-//! Python kinematics class (`klipper/jointspace.py`) asks: forward kinematics, whether a whole move can be made
+//! Python kinematics class (`klipper/jointspace_kinematics.py`) asks: forward kinematics, whether a whole move can be made
 //! and how fast, the pose to report. Klipper's itersolve and step compression do the rest.
 //!
 //! The C interface is declared in `klipper/jointspace.h`. Conventions: functions return 0 on success and a
@@ -206,6 +206,36 @@ pub unsafe extern "C" fn jointspace_machine_free(m: *mut Machine) {
 pub extern "C" fn jointspace_machine_read_keys(m: *const Machine) -> *const c_char {
     guarded(c"".as_ptr(), NO_BUFFER, || {
         machine(m).map_or(c"".as_ptr(), |m| m.read_keys().as_ptr())
+    })
+}
+
+/// The value the machine was built with for the `[printer]` key `key` (a polar arm's `arm_zero_offset`,
+/// `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`; `max_z_velocity`,
+/// `max_z_accel`) into `value`: 0, or −1 when the machine has no such key. The plug-in asks here instead of reading
+/// the key a second time.
+///
+/// # Safety
+/// `key` is a NUL-terminated string; `value` points to a double.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn jointspace_machine_value(
+    m: *const Machine,
+    key: *const c_char,
+    value: *mut f64,
+) -> c_int {
+    guarded(-1, NO_BUFFER, || {
+        if key.is_null() || value.is_null() {
+            return -1;
+        }
+        // SAFETY: per the contract (null is refused).
+        let key = unsafe { CStr::from_ptr(key) }.to_string_lossy();
+        match machine(m).and_then(|m| m.printer_value(&key)) {
+            Some(v) => {
+                // SAFETY: value points to a double (null is refused).
+                unsafe { *value = v };
+                0
+            }
+            None => -1,
+        }
     })
 }
 

@@ -312,6 +312,25 @@ impl Machine {
     pub fn reach_margin(&self, p: [f64; 3]) -> Option<f64> {
         self.kinematics().reach_margin(p)
     }
+
+    /// The value the machine was built with for one of its `[printer]` keys the plug-in needs (a polar arm's
+    /// `arm_zero_offset`, `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`; any
+    /// machine's `max_z_velocity`, `max_z_accel`), so the plug-in never reads one a second time; `None` for a key this
+    /// machine does not have.
+    pub fn printer_value(&self, key: &str) -> Option<f64> {
+        let planner = &self.machine.setup.planner;
+        match (&self.machine.config.params, key) {
+            (_, "max_z_velocity") => Some(planner.max_z_velocity),
+            (_, "max_z_accel") => Some(planner.max_z_accel),
+            (MachineParams::Polar(p), "arm_zero_offset") => Some(p.arm_zero_offset),
+            (MachineParams::Polar(p), "arm_lateral_offset") => Some(p.arm_lateral_offset),
+            (MachineParams::Scara(s), "link1_length") => Some(s.link1_length),
+            (MachineParams::Scara(s), "link2_length") => Some(s.link2_length),
+            (MachineParams::Scara(s), "offset_x") => Some(s.offset_x),
+            (MachineParams::Scara(s), "offset_y") => Some(s.offset_y),
+            _ => None,
+        }
+    }
 }
 
 /// Every `section key` the config reader read, one per line.

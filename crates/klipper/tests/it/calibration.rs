@@ -90,3 +90,33 @@ fn scara_pattern_on_the_printer_then_identification() {
         assert!((got - truth).abs() < 0.01, "{key}: {got}, built {truth}");
     }
 }
+
+/// `[jointspace]` registers the command on every printer; on a polar one it says which kinematics it needs and
+/// writes nothing.
+#[test]
+fn scara_pattern_on_a_polar_printer_names_what_it_needs() {
+    let Some(hosts) = Hosts::get("scara_pattern_on_a_polar_printer_names_what_it_needs") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = dir.path().join("printer.cfg");
+    std::fs::copy(workspace_root().join("klipper/examples/polar.cfg"), &config)
+        .expect("copy config");
+    let gcode = write(
+        dir.path(),
+        "pattern.gcode",
+        "G28\nJOINTSPACE_SCARA_PATTERN\n",
+    );
+    let run = hosts.batch(KLIPPER, false, &config, &gcode, &dir.path().join("out"));
+    assert!(
+        run.log
+            .contains("JOINTSPACE_SCARA_PATTERN needs kinematics: jointspace_scara"),
+        "{}",
+        crate::hosts::tail(&run.log, 20)
+    );
+    assert!(
+        !dir.path()
+            .join("jointspace-scara-measurements.csv")
+            .exists()
+    );
+}

@@ -28,6 +28,21 @@ fn git(tree: &Path, args: &[&str]) -> String {
     String::from_utf8_lossy(&output.stdout).into_owned()
 }
 
+/// The plug-in's modules: `jointspace.py` and every `jointspace_*.py` beside it that it loads (all but the stand-in
+/// install.sh links as the kinematics modules).
+fn plugin_modules() -> Vec<String> {
+    let mut modules: Vec<String> = std::fs::read_dir(workspace_root().join("klipper"))
+        .expect("klipper/")
+        .flatten()
+        .filter_map(|e| e.file_name().into_string().ok())
+        .filter(|n| n.starts_with("jointspace") && n.ends_with(".py"))
+        .filter(|n| n != "jointspace_missing_section.py")
+        .collect();
+    modules.sort();
+    assert!(modules.len() > 2, "{modules:?}");
+    modules
+}
+
 fn install_and_uninstall(host: &str, module_folder: &str) {
     let tarball = shared().join(format!("klipper/{host}.tar.gz"));
     if !tarball.is_file() {
@@ -58,8 +73,8 @@ fn install_and_uninstall(host: &str, module_folder: &str) {
     git(&tree, &["commit", "-qm", "pristine"]);
 
     install(&tree, false);
-    let modules = ["jointspace.py", "jointspace_scan.py"];
-    for module in modules {
+    let modules = plugin_modules();
+    for module in &modules {
         let link = tree.join(module_folder).join(module);
         let target = std::fs::read_link(&link).expect("the module is a symlink");
         assert_eq!(
@@ -82,7 +97,7 @@ fn install_and_uninstall(host: &str, module_folder: &str) {
     );
     install(&tree, false); // twice: still one line each in the exclude file
     let exclude = std::fs::read_to_string(tree.join(".git/info/exclude")).expect("exclude");
-    for module in modules {
+    for module in &modules {
         assert_eq!(
             exclude.matches(&format!("/{module}")).count(),
             1,
@@ -91,7 +106,7 @@ fn install_and_uninstall(host: &str, module_folder: &str) {
     }
 
     install(&tree, true);
-    for module in modules {
+    for module in &modules {
         let link = tree.join(module_folder).join(module);
         assert!(
             !link.exists() && link.symlink_metadata().is_err(),

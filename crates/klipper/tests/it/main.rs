@@ -12,6 +12,7 @@ mod config_errors;
 mod differential;
 mod engine;
 mod examples;
+mod header;
 mod homing;
 mod hosts;
 mod install;

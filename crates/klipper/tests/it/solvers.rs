@@ -9,8 +9,8 @@ use jointspace_klipper::abi::{Move, StepperKinematics};
 use jointspace_klipper::machine::Machine;
 use jointspace_klipper::{
     jointspace_check_move, jointspace_forward, jointspace_inverse, jointspace_junction_speed,
-    jointspace_machine_free, jointspace_machine_new, jointspace_move_waypoints,
-    jointspace_reach_margin, jointspace_stepper_alloc,
+    jointspace_machine_free, jointspace_machine_new, jointspace_machine_value,
+    jointspace_move_waypoints, jointspace_reach_margin, jointspace_stepper_alloc,
 };
 use proptest::prelude::*;
 
@@ -241,6 +241,36 @@ fn bad_config_is_refused_with_the_reason() {
     assert!(m.is_null());
     let reason = unsafe { CStr::from_ptr(error.as_ptr()) }.to_string_lossy();
     assert!(reason.contains("max_accel"), "{reason}");
+}
+
+/// What the plug-in asks instead of reading a `[printer]` key a second time: the value the machine was built with
+/// (defaults included), and none for a key this machine does not have.
+#[test]
+fn the_machine_answers_its_printer_keys() {
+    let value = |m: *mut Machine, key: &str| {
+        let key = CString::new(key).expect("key");
+        let mut v = f64::NAN;
+        // SAFETY: a live machine, a valid string and a double.
+        let rc = unsafe { jointspace_machine_value(m, key.as_ptr(), &mut v) };
+        (rc == 0).then_some(v)
+    };
+    let polar = machine("polar", "arm_zero_offset: 0.25\narm_lateral_offset: -0.1");
+    assert_eq!(value(polar, "arm_zero_offset"), Some(0.25));
+    assert_eq!(value(polar, "arm_lateral_offset"), Some(-0.1));
+    assert_eq!(value(polar, "max_z_velocity"), Some(20.0));
+    assert_eq!(value(polar, "max_z_accel"), Some(100.0));
+    assert_eq!(value(polar, "offset_x"), None);
+    let scara = machine("scara", "");
+    assert_eq!(value(scara, "link1_length"), Some(100.0));
+    assert_eq!(value(scara, "link2_length"), Some(100.0));
+    assert_eq!(value(scara, "offset_y"), Some(0.0));
+    assert_eq!(value(scara, "arm_zero_offset"), None);
+    assert_eq!(value(scara, "max_velocity"), None);
+    assert_eq!(value(std::ptr::null_mut(), "max_z_accel"), None);
+    for m in [polar, scara] {
+        // SAFETY: made above, freed once.
+        unsafe { jointspace_machine_free(m) };
+    }
 }
 
 // ---------------------------------------------------------------------------------------------------------------

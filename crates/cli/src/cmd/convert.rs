@@ -516,34 +516,10 @@ fn centre_correction(args: &Args) -> miette::Result<Option<CentreCorrection>> {
     Ok(None)
 }
 
-/// The place and message of a conversion error that belongs to a G-code line (its text starts with its own
-/// `line l:c:`, which the diagnostics replace with file, line and column).
-fn on_line(e: &convert::ConvertError) -> Option<(gcode::Span, String)> {
-    use convert::ConvertError as E;
-    match e {
-        E::Unreachable { span, .. }
-        | E::Unsupported { span, .. }
-        | E::NoConvergence { span, .. }
-        | E::UnknownPosition { span, .. } => {
-            let text = e.to_string();
-            let message = text
-                .split_once(": ")
-                .map_or(text.as_str(), |(_, rest)| rest);
-            Some((*span, message.to_string()))
-        }
-        _ => None,
-    }
-}
-
 /// A conversion error: on a G-code line when it has one.
 fn convert_error(args: &Args, e: anyhow::Error) -> Failure {
-    use convert::ConvertError as E;
-    let (place, message) = match e.downcast_ref::<E>() {
-        Some(E::Gcode(g)) => (Some((g.span.line, g.span.column)), g.kind.to_string()),
-        Some(other) => match on_line(other) {
-            Some((span, message)) => (Some((span.line, span.column)), message),
-            None => (None, format!("{e:#}")),
-        },
+    let (place, message) = match e.downcast_ref::<convert::ConvertError>() {
+        Some(c) => (c.place().map(|s| (s.line, s.column)), c.message()),
         None => (None, format!("{e:#}")),
     };
     Failure {
@@ -552,16 +528,15 @@ fn convert_error(args: &Args, e: anyhow::Error) -> Failure {
         message,
     }
 }
-
 fn convert_report(args: &Args, e: anyhow::Error) -> miette::Report {
     use convert::ConvertError as E;
     match e.downcast::<E>() {
         Ok(E::Gcode(e)) => miette::Report::new(diag::gcode_error(&e)),
-        Ok(other) => match on_line(&other) {
-            Some((span, message)) => miette::Report::new(diag::at_gcode_line(
+        Ok(other) => match other.place() {
+            Some(span) => miette::Report::new(diag::at_gcode_line(
                 &args.file,
                 span,
-                message,
+                other.message(),
                 "here".into(),
             )),
             None => miette::miette!("{}: {other}", args.file.display()),

@@ -57,9 +57,9 @@ fn small_heat_map() -> Figure {
 }
 
 fn decode_png(path: &std::path::Path) -> (png::OutputInfo, Vec<u8>) {
-    let decoder = png::Decoder::new(File::open(path).expect("png written"));
-    let mut reader = decoder.read_info().expect("png header");
-    let mut buf = vec![0; reader.output_buffer_size()];
+    let file = std::io::BufReader::new(File::open(path).expect("png written"));
+    let mut reader = png::Decoder::new(file).read_info().expect("png header");
+    let mut buf = vec![0; reader.output_buffer_size().expect("png size")];
     let info = reader.next_frame(&mut buf).expect("png data");
     buf.truncate(info.buffer_size());
     (info, buf)

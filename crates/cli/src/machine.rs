@@ -14,11 +14,15 @@ pub fn load_machine(path: &Path) -> miette::Result<Machine> {
 }
 
 /// Read `printer.cfg` with its warnings on standard error, refused when it has a key nothing reads (Klipper would
-/// not start on it); the file becomes an input no output may replace.
+/// not start on it); the file and every file it includes become inputs no output may replace.
 pub fn read_config(path: &Path) -> miette::Result<config::MachineConfig> {
     outfile::register_input(path);
     let (config, notes) =
         Machine::read(path).map_err(|e| miette::Report::new(diag::config_error(&e)))?;
+    // Every file the config read is an input of the run: no output may replace an included file either.
+    for file in config.document.files() {
+        outfile::register_input(file);
+    }
     for note in &notes {
         let kind = if note.refused { "error" } else { "warning" };
         match &note.span {

@@ -34,6 +34,10 @@ pub enum ConfigError {
         message: String,
     },
 
+    /// An include beyond what a config may pull in (too deep, too many files, too large, not a regular file).
+    #[error("{span}: {message}")]
+    IncludeRefused { span: Box<Span>, message: String },
+
     #[error("{span}: recursive include: {}", chain_text(chain))]
     IncludeCycle {
         span: Box<Span>,
@@ -88,6 +92,7 @@ impl ConfigError {
             | ConfigError::IncludeNotFound { span, .. }
             | ConfigError::IncludePattern { span, .. }
             | ConfigError::IncludeCycle { span, .. }
+            | ConfigError::IncludeRefused { span, .. }
             | ConfigError::MissingKey { span, .. }
             | ConfigError::InvalidValue { span, .. }
             | ConfigError::UnsupportedKinematics { span, .. }

@@ -31,10 +31,58 @@ impl ConfigDocument {
     }
 }
 
+/// How deep includes may nest: Klipper sets no limit of its own, but real configs nest two or three deep; an endless
+/// chain must stop with a located error, not a stack overflow.
+const MAX_INCLUDE_DEPTH: usize = 64;
+
+/// How many files one config may read, includes counted each time they are read: a file included again and again
+/// (a "diamond" of files each including the next two) would otherwise be read exponentially often.
+const MAX_CONFIG_FILES: usize = 1000;
+
+/// How many bytes all the files of one config may hold together (a printer.cfg is a few kB; a runaway include must
+/// not fill memory).
+const MAX_CONFIG_BYTES: u64 = 64 << 20;
+
 /// Reads a config file from disk with everything it includes.
 fn parse_file(path: &Path) -> Result<ConfigDocument, ConfigError> {
+    let io = |source| ConfigError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    check_readable(path, MAX_CONFIG_BYTES).map_err(io)?;
     let text = read_text(path)?;
     parse_text(&text, path)
+}
+
+/// Why `path` may not be read as a config file: not a regular file (a FIFO would block, a device such as
+/// `/dev/zero` never ends), or larger than `budget` bytes.
+fn check_readable(path: &Path, budget: u64) -> Result<u64, std::io::Error> {
+    let meta = std::fs::metadata(path)?;
+    let refuse = |what: String| Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, what));
+    if !meta.is_file() {
+        return refuse(format!("not a regular file ({})", file_kind(&meta)));
+    }
+    if meta.len() > budget {
+        return refuse(format!(
+            "{} bytes, more than the {} MiB all config files together may hold",
+            meta.len(),
+            MAX_CONFIG_BYTES >> 20
+        ));
+    }
+    Ok(meta.len())
+}
+
+/// What kind of file system entry `meta` describes, for a refusal.
+fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt as _;
+    let kind = meta.file_type();
+    match () {
+        _ if kind.is_dir() => "a folder",
+        _ if kind.is_fifo() => "a FIFO",
+        _ if kind.is_char_device() || kind.is_block_device() => "a device",
+        _ if kind.is_socket() => "a socket",
+        _ => "not a file",
+    }
 }
 
 /// Parses `text` as the main file `path`.
@@ -44,6 +92,7 @@ fn parse_text(text: &str, path: &Path) -> Result<ConfigDocument, ConfigError> {
         files: vec![path.to_path_buf()],
         warnings: Vec::new(),
         include_stack: vec![identity(path)],
+        bytes: text.len() as u64,
     };
     let file: Arc<Path> = Arc::from(path);
     let lines = split_lines(text);
@@ -144,6 +193,8 @@ struct Builder {
     warnings: Vec<ConfigWarning>,
     /// Files being read, outermost first (canonical paths), to name an include cycle.
     include_stack: Vec<PathBuf>,
+    /// Bytes read so far, every file counted each time it is read.
+    bytes: u64,
 }
 
 /// Where the reader is within one unit of text: current section and the option that may continue.
@@ -281,7 +332,9 @@ impl Builder {
                     chain,
                 });
             }
+            self.check_include(&path, span)?;
             let text = read_text(&path)?;
+            self.bytes += text.len() as u64;
             self.files.push(path.clone());
             self.include_stack.push(id);
             let file: Arc<Path> = Arc::from(path.as_path());
@@ -289,6 +342,30 @@ impl Builder {
             self.include_stack.pop();
         }
         Ok(())
+    }
+}
+
+impl Builder {
+    /// Whether the include of `path` at `span` stays within what one config may read.
+    fn check_include(&self, path: &Path, span: &Span) -> Result<(), ConfigError> {
+        let refuse = |message: String| ConfigError::IncludeRefused {
+            span: Box::new(span.clone()),
+            message,
+        };
+        if self.include_stack.len() >= MAX_INCLUDE_DEPTH {
+            return Err(refuse(format!(
+                "includes nest more than {MAX_INCLUDE_DEPTH} files deep"
+            )));
+        }
+        if self.files.len() >= MAX_CONFIG_FILES {
+            return Err(refuse(format!(
+                "more than {MAX_CONFIG_FILES} files read for one config (a file included again and again?)"
+            )));
+        }
+        let budget = MAX_CONFIG_BYTES.saturating_sub(self.bytes);
+        check_readable(path, budget)
+            .map(|_| ())
+            .map_err(|e| refuse(format!("cannot include {}: {e}", path.display())))
     }
 }
 
@@ -440,7 +517,8 @@ fn resolve_include(
             message: err.msg.to_string(),
         })?;
     let mut found = Vec::new();
-    for path in paths {
+    // Bounded: more matches than a config may read are refused by the reader anyway.
+    for path in paths.take(MAX_CONFIG_FILES + 1) {
         let path = path.map_err(|err| ConfigError::Io {
             path: err.path().to_path_buf(),
             source: std::io::Error::new(err.error().kind(), err.error().to_string()),

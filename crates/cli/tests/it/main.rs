@@ -8,6 +8,7 @@ mod common;
 mod determinism;
 mod fuzz_regressions;
 mod host;
+mod includes;
 mod interrupt;
 mod invariants;
 mod json;

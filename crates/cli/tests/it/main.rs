@@ -12,4 +12,5 @@ mod interrupt;
 mod json;
 mod limits;
 mod output;
+mod scara_calibration;
 mod structure;

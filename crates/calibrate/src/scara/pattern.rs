@@ -7,6 +7,7 @@
 //! Candidates lie on rings about the shoulder (every 5° of direction); a candidate is kept only where the machine
 //! accepts the whole cross and a millimetre around it (`check_segment` of each stroke at the first layer's height).
 //! Among them a greedy D-optimal design picks the poses (the identification's Jacobian at the nominal geometry);
+//! no cross or travel crosses the shoulder's branch cut (q1 = ±π, where the printer's solvers refuse a move);
 //! the crosses are printed in shoulder order, travels between them turning the joints (via points every few degrees
 //! of motor angle, each travel segment checked by the machine and cut finer where it refuses one).
 
@@ -201,6 +202,7 @@ pub fn machine_pattern(
     o: &PatternOptions,
 ) -> Result<Pattern, PatternError> {
     check_options(o, count)?;
+    let kin = &within_branch_cut(kin)?;
     let all = candidates(kin, o);
     if all.len() < MIN_POSES {
         return Err(PatternError::TooFewPoses {
@@ -232,6 +234,16 @@ pub fn machine_pattern(
         poses,
         frame,
     })
+}
+
+/// The machine with its shoulder joint kept within (−π, π]: the printer's step solvers take q1 there (as the
+/// FEKT-SCARA module does) and refuse a move through q1 = ±π, so no cross or travel crosses it, and the printer and
+/// the command line make the same pattern of one config.
+fn within_branch_cut(kin: &Scara) -> Result<Scara, PatternError> {
+    let mut params = kin.params().clone();
+    let (min, max) = params.shoulder_limits.unwrap_or((-PI, PI));
+    params.shoulder_limits = Some((min.max(-PI), max.min(PI)));
+    Scara::new(params).map_err(|e| PatternError::Options(e.to_string()))
 }
 
 /// The G-code of the crosses in order, with the travels between them.

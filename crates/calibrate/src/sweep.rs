@@ -431,6 +431,7 @@ pub fn detect(p: &SweepParams, samples: &[SweepSample]) -> Result<DetectionSlots
     let mut slots = DetectionSlots {
         near: near.iter().map(|(_, d)| Some(*d)).collect(),
         far: vec![None; near.len()],
+        ring: None,
     };
     for (angle, d) in far {
         let distance = |a: f64| (a - angle + PI).rem_euclid(TAU) - PI;

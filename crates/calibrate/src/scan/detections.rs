@@ -20,8 +20,13 @@ pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanEr
         column: e.column,
         message: e.message,
     };
+    let (ring_line, table) = crate::csv::leading_setting(text, "magnets").map_err(located)?;
+    let ring = match ring_line {
+        Some(setting) => Some(ring_size(&setting).map_err(located)?),
+        None => None,
+    };
     let mut rows: Vec<(usize, bool, Detection)> = Vec::new();
-    for row in crate::csv::data_rows(text, &DETECTIONS_HEADER).map_err(located)? {
+    for row in crate::csv::data_rows(&table, &DETECTIONS_HEADER).map_err(located)? {
         let magnet_text = row.fields[0].1;
         let magnet: usize = magnet_text
             .parse()
@@ -40,6 +45,12 @@ pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanEr
                 ));
             }
         };
+        if let Some(n) = ring.filter(|&n| magnet >= n) {
+            return Err(located(row.error_at(
+                0,
+                format!("magnet {magnet} on a ring of {n} magnets (the file's `magnets` line): indices run 0 to {}", n - 1),
+            )));
+        }
         let r = row.number(2).map_err(located)?;
         let theta = row.number(3).map_err(located)?;
         if rows.iter().any(|r| r.0 == magnet && r.1 == far) {
@@ -61,6 +72,7 @@ pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanEr
     let mut slots = DetectionSlots {
         near: vec![None; n],
         far: vec![None; n],
+        ring,
     };
     for (k, far, d) in rows {
         if far {
@@ -72,6 +84,23 @@ pub fn parse_detections(text: &str, file: &str) -> Result<DetectionSlots, ScanEr
     Ok(slots)
 }
 
+/// The ring's size of a `magnets,N` line.
+fn ring_size(setting: &crate::csv::Setting) -> Result<usize, crate::csv::CsvError> {
+    setting
+        .value
+        .parse::<usize>()
+        .ok()
+        .filter(|n| (3..10_000).contains(n))
+        .ok_or_else(|| crate::csv::CsvError {
+            line: setting.line,
+            column: setting.column,
+            message: format!(
+                "`{}` is not a ring's number of magnets (3 or more)",
+                setting.value
+            ),
+        })
+}
+
 /// The header comment of a detections file written by [`write_detections`]: what each column means and which
 /// sign the bed angle has.
 pub const DETECTIONS_PREAMBLE: &str = "\
@@ -80,12 +109,14 @@ pub const DETECTIONS_PREAMBLE: &str = "\
 # arm_mm: the arm's reading (mm from its zero). bed_deg: the bed motor's reading (degrees, unwrapped) in the
 # machine's sign, as Klipper's polar kinematics and `jointspace convert` use it: an ideal machine has bed
 # point (r*cos(bed), r*sin(bed)) under the nozzle. The bed itself has turned by -bed_deg.
+# magnets: the ring's size; a magnet without a line was not found.
 ";
 
 /// A detections file (see [`parse_detections`]) of a scan's result: the preamble, the header, and one line per
 /// detection with every digit of the readings.
 pub fn write_detections(result: &CentreResult) -> String {
     let mut text = String::from(DETECTIONS_PREAMBLE);
+    text += &format!("magnets,{}\n", result.magnet_count);
     text += &DETECTIONS_HEADER.join(",");
     text.push('\n');
     for m in &result.magnets {
@@ -103,6 +134,9 @@ pub fn write_detections(result: &CentreResult) -> String {
 pub struct DetectionSlots {
     pub near: Vec<Option<Detection>>,
     pub far: Vec<Option<Detection>>,
+    /// The ring's size the file states (its `magnets,N` line), if it does.
+    #[serde(default)]
+    pub ring: Option<usize>,
 }
 
 #[cfg(test)]

@@ -64,62 +64,26 @@ pub fn parse_measurements(text: &str, file: &str) -> Result<Vec<Measurement>, Sc
     parse_measurement_file(text, file).map(|f| f.rows)
 }
 
-/// The `frame,…` line when it is the first line with content, and the text with that line blanked (so the table's
-/// line numbers stay the file's).
+/// The `frame,…` line when it is the first line with content, and the text with that line blanked.
 fn frame_line(text: &str) -> Result<(Option<(ScaraFrame, usize)>, String), crate::csv::CsvError> {
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let Some((index, content)) = text
-        .lines()
-        .map(|raw| raw.split('#').next().unwrap_or(""))
-        .enumerate()
-        .find(|(_, c)| !c.trim().is_empty())
-    else {
-        return Ok((None, text.to_string()));
+    let (setting, table) = crate::csv::leading_setting(text, "frame")?;
+    let Some(setting) = setting else {
+        return Ok((None, table));
     };
-    let mut fields = content.split(',');
-    if !fields
-        .next()
-        .is_some_and(|f| f.trim().eq_ignore_ascii_case("frame"))
-    {
-        return Ok((None, text.to_string()));
-    }
-    let value_column = content.find(',').map_or(content.len(), |c| c + 1);
-    let value = fields.next().unwrap_or("").trim();
-    let lead = content[value_column.min(content.len())..].len()
-        - content[value_column.min(content.len())..]
-            .trim_start()
-            .len();
-    let error = |column: usize, message: String| crate::csv::CsvError {
-        line: index + 1,
-        column,
-        message,
-    };
-    let frame = match value.to_ascii_lowercase().as_str() {
+    let frame = match setting.value.to_ascii_lowercase().as_str() {
         "standard" => ScaraFrame::Standard,
         "xscara" | "x-scara" => ScaraFrame::XScara,
-        _ => {
-            return Err(error(
-                value_column + lead + 1,
-                format!("frame `{value}` is not `standard` or `xscara` (printer.cfg's `frame`)"),
-            ));
+        other => {
+            return Err(crate::csv::CsvError {
+                line: setting.line,
+                column: setting.column,
+                message: format!(
+                    "frame `{other}` is not `standard` or `xscara` (printer.cfg's `frame`)"
+                ),
+            });
         }
     };
-    if let Some(extra) = fields.find(|f| !f.trim().is_empty()) {
-        return Err(error(
-            1,
-            format!(
-                "the frame line takes one value, found also `{}`",
-                extra.trim()
-            ),
-        ));
-    }
-    let table = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| if i == index { "" } else { l })
-        .collect::<Vec<_>>()
-        .join("\n");
-    Ok((Some((frame, index + 1)), table))
+    Ok((Some((frame, setting.line)), table))
 }
 
 /// Degrees with enough decimals that the angle read back is the listed one within 1e-11 rad.

@@ -38,9 +38,10 @@ pub struct CentreArgs {
     /// tilted shifts dx and dy by that much and no scan can see it; it is added to the reported uncertainty.
     #[arg(long, default_value_t = 0.05, value_name = "MM")]
     pub sensor_alignment: f64,
-    /// Magnets on the bed rim (simulation).
-    #[arg(long, default_value_t = 16)]
-    pub magnets: usize,
+    /// Magnets on the bed rim: the ring's size (default 16 for `--simulate`; for `--scan`, the file's `magnets`
+    /// line, which scans written by jointspace carry). A magnet the scan did not find is flagged as missing.
+    #[arg(long)]
+    pub magnets: Option<usize>,
     /// True arm offsets `dx,dy` of the simulated machine (mm); random up to 2 mm when not given.
     #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
     pub offset: Option<String>,
@@ -133,27 +134,50 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
     }
 }
 
-/// Scan settings for the arguments.
-fn scan_params(args: &CentreArgs) -> ScanParams {
+/// The ring's size a simulated scan has unless `--magnets` says otherwise.
+const SIMULATED_MAGNETS: usize = 16;
+
+/// Scan settings for the arguments and a ring of `magnets`.
+fn scan_params(args: &CentreArgs, magnets: usize) -> ScanParams {
     ScanParams {
-        magnet_count: args.magnets,
+        magnet_count: magnets,
         sensor_alignment: args.sensor_alignment,
         ..ScanParams::default()
     }
 }
 
+/// The centre from a detections file: the ring's size from `--magnets` or the file's `magnets` line (both must
+/// agree); without either, the highest magnet index found, with a warning that a missing last magnet goes unseen.
+fn centre_from_file(args: &CentreArgs, path: &Path) -> miette::Result<calibrate::CentreResult> {
+    crate::output::register_input(path);
+    let name = path.display().to_string();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| miette::miette!("cannot read {name}: {e}"))?;
+    let slots =
+        calibrate::scan::parse_detections(&text, &name).map_err(|e| miette::miette!("{e}"))?;
+    let found = slots.near.len().max(slots.far.len());
+    let magnets = match (args.magnets, slots.ring) {
+        (Some(given), Some(stated)) if given != stated => miette::bail!(
+            "{name}: the file's ring has {stated} magnets (its `magnets` line), --magnets says {given}"
+        ),
+        (Some(n), _) | (None, Some(n)) => n,
+        (None, None) => {
+            eprintln!(
+                "{name}: warning: the ring's size is not known (no `magnets` line, no --magnets): taking {found} \
+                 from the highest magnet index, so a missing last magnet cannot be flagged"
+            );
+            found
+        }
+    };
+    calibrate::scan::centre_from_ring(&scan_params(args, magnets), slots)
+        .map_err(|e| miette::miette!("{name}: {e}"))
+}
+
 fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
-    let params = scan_params(&args);
     let (result, truth) = if let Some(path) = &args.scan {
-        crate::output::register_input(path);
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
-        let slots = calibrate::scan::parse_detections(&text, &path.display().to_string())
-            .map_err(|e| miette::miette!("{e}"))?;
-        let result = calibrate::scan::centre_from_detections(&params, slots.near, slots.far)
-            .map_err(|e| miette::miette!("{e}"))?;
-        (result, None)
+        (centre_from_file(&args, path)?, None)
     } else if args.simulate {
+        let params = scan_params(&args, args.magnets.unwrap_or(SIMULATED_MAGNETS));
         let (result, truth) = simulate_scan(&simulated_bed(&args)?, &params)?;
         (result, Some(truth))
     } else {
@@ -206,7 +230,7 @@ fn simulated_bed(args: &CentreArgs) -> miette::Result<SimulatedBed> {
         None => None,
     };
     Ok(SimulatedBed {
-        magnets: args.magnets,
+        magnets: args.magnets.unwrap_or(SIMULATED_MAGNETS),
         noise_mt: args.noise,
         seed: args.seed,
         offset,

@@ -1,7 +1,8 @@
 //! The SCARA calibration as a user runs it: `calibrate scara-pattern` writes crosses that `check` of the same machine
 //! accepts, whose listed motor angles put the arm (a forward model written here) at the cross centres the G-code
 //! writes; the filled-in measurements of an arm built differently identify it; and measurements that cannot be right
-//! (columns swapped, a cross mis-measured, too few poses, another frame) are refused with a non-zero exit.
+//! (columns swapped, a cross mis-measured, too few poses, another frame) are refused with a non-zero exit. And the
+//! centre scan from a file knows its ring's size, so a missing last magnet is flagged.
 
 use std::path::Path;
 
@@ -254,4 +255,57 @@ fn measurements_identify_the_arm_or_are_refused_with_the_cause() {
     let (code, _, err) = fit("frame.csv", &standard);
     assert_eq!(code, Some(1));
     assert!(err.contains(&format!("frame.csv:{at}:1")), "{err}");
+}
+
+/// `calibrate centre --scan`: the ring's size comes from the file's `magnets` line or `--magnets`, so a magnet
+/// missing in the last slot is flagged; without either the command says it cannot be.
+#[test]
+fn a_centre_scan_file_flags_a_missing_last_magnet() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (code, out, err) = run(
+        dir.path(),
+        &[
+            "calibrate",
+            "centre",
+            "--simulate",
+            "--offset",
+            "0.5,-0.3",
+            "--save-scan",
+            "s.csv",
+        ],
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    let text = std::fs::read_to_string(dir.path().join("s.csv")).expect("scan file");
+    assert!(text.lines().any(|l| l == "magnets,16"), "{text}");
+    let keep = |drop_ring: bool| -> String {
+        text.lines()
+            .filter(|l| !(l.starts_with("15,") || drop_ring && l.starts_with("magnets,")))
+            .map(|l| format!("{l}\n"))
+            .collect()
+    };
+    std::fs::write(dir.path().join("m.csv"), keep(false)).expect("write");
+    std::fs::write(dir.path().join("n.csv"), keep(true)).expect("write");
+    let flagged = "magnet 15 was not found";
+    let (code, out, _) = run(dir.path(), &["calibrate", "centre", "--scan", "m.csv"]);
+    assert_eq!(code, Some(0));
+    assert!(out.contains(flagged), "{out}");
+    let (_, out, _) = run(
+        dir.path(),
+        &["calibrate", "centre", "--scan", "n.csv", "--magnets", "16"],
+    );
+    assert!(out.contains(flagged), "{out}");
+    let (_, out, err) = run(dir.path(), &["calibrate", "centre", "--scan", "n.csv"]);
+    assert!(
+        !out.contains(flagged) && err.contains("ring's size is not known"),
+        "{out}{err}"
+    );
+    let (code, _, err) = run(
+        dir.path(),
+        &["calibrate", "centre", "--scan", "m.csv", "--magnets", "12"],
+    );
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("16 magnets") && err.contains("--magnets says 12"),
+        "{err}"
+    );
 }

@@ -502,3 +502,55 @@ fn a_missing_last_magnet_is_flagged_from_a_file() {
     };
     assert!(centre_from_ring(&small, slots).is_err());
 }
+
+/// The detections file keeps each peak's height: a magnet half as strong as the others is flagged from the file as
+/// it is from the scan itself; a file without the column (older scans) still reads.
+#[test]
+fn a_weak_magnet_is_flagged_from_a_file() {
+    use calibrate::scan::{centre_from_ring, parse_detections, write_detections};
+    let (_, r) = scan_error(13, PeakMethod::Interpolated);
+    let params = ScanParams {
+        magnet_count: r.magnet_count,
+        ..ScanParams::default()
+    };
+    let text = write_detections(&r);
+    let weak: String = text
+        .lines()
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            match (
+                cells.first(),
+                cells.get(4).and_then(|c| c.parse::<f64>().ok()),
+            ) {
+                (Some(&"3"), Some(peak)) => format!("{},{}\n", cells[..4].join(","), 0.5 * peak),
+                _ => format!("{l}\n"),
+            }
+        })
+        .collect();
+    let fit = centre_from_ring(&params, parse_detections(&weak, "weak.csv").expect("parse"))
+        .expect("fit");
+    assert!(
+        fit.flags.iter().any(|f| f.starts_with("magnet 3 peaks at")),
+        "{:?}",
+        fit.flags
+    );
+    let unflagged = centre_from_ring(&params, parse_detections(&text, "scan.csv").expect("parse"))
+        .expect("fit");
+    assert!(
+        !unflagged.flags.iter().any(|f| f.contains("peaks at")),
+        "{:?}",
+        unflagged.flags
+    );
+    // Without the column: read, no peak to judge.
+    let old: String = weak
+        .lines()
+        .map(|l| match l.rsplit_once(',') {
+            Some((head, _)) if !l.starts_with('#') && !l.starts_with("magnets") => {
+                format!("{head}\n")
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let slots = parse_detections(&old, "old.csv").expect("parse");
+    assert!(slots.near.iter().flatten().all(|d| d.peak == 0.0));
+}

@@ -93,6 +93,54 @@ pub(crate) fn data_rows<'a>(text: &'a str, header: &[&str]) -> Result<Vec<Row<'a
     Ok(rows)
 }
 
+/// A setting line `key,value` that comes before a file's header (the first line with content), if there is one:
+/// its value with the value's line and column, and the text with that line blanked (so the table's line numbers
+/// stay the file's). Trailing empty fields are allowed (a spreadsheet pads the line to the table's width).
+pub(crate) struct Setting<'a> {
+    pub value: &'a str,
+    pub line: usize,
+    pub column: usize,
+}
+
+pub(crate) fn leading_setting<'a>(
+    text: &'a str,
+    key: &str,
+) -> Result<(Option<Setting<'a>>, String), CsvError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let first = text
+        .lines()
+        .map(|raw| raw.split('#').next().unwrap_or(""))
+        .enumerate()
+        .find(|(_, c)| !c.trim().is_empty());
+    let Some((index, content)) = first else {
+        return Ok((None, text.to_string()));
+    };
+    let fields = split_fields(content);
+    if !fields[0].1.eq_ignore_ascii_case(key) {
+        return Ok((None, text.to_string()));
+    }
+    let (column, value) = fields.get(1).copied().unwrap_or((content.len() + 1, ""));
+    if let Some((extra_column, extra)) = fields.iter().skip(2).find(|(_, f)| !f.is_empty()) {
+        return Err(CsvError {
+            line: index + 1,
+            column: *extra_column,
+            message: format!("the `{key}` line takes one value, found also `{extra}`"),
+        });
+    }
+    let table = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i == index { "" } else { l })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let setting = Setting {
+        value,
+        line: index + 1,
+        column,
+    };
+    Ok((Some(setting), table))
+}
+
 /// Trimmed fields with their 1-based starting columns.
 fn split_fields(content: &str) -> Vec<(usize, &str)> {
     let mut fields = Vec::new();

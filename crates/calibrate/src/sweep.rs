@@ -431,6 +431,8 @@ pub fn detect(p: &SweepParams, samples: &[SweepSample]) -> Result<DetectionSlots
     let mut slots = DetectionSlots {
         near: near.iter().map(|(_, d)| Some(*d)).collect(),
         far: vec![None; near.len()],
+        // Each side found exactly the ring's magnets (`side_detections` refuses another count).
+        ring: Some(p.magnet_count),
     };
     for (angle, d) in far {
         let distance = |a: f64| (a - angle + PI).rem_euclid(TAU) - PI;

@@ -18,6 +18,10 @@ const BUFFER_BYTES: usize = 1 << 16;
 pub fn open_gcode(path: &Path) -> anyhow::Result<(GcodeInput, String, ProgressBar)> {
     crate::output::register_input(path);
     if path == Path::new("-") {
+        // A closed standard input would read as an empty file and pass every check.
+        if crate::output::was_closed_at_start(0) {
+            anyhow::bail!("cannot read standard input: it is closed");
+        }
         let bar = ProgressBar::hidden();
         let reader: Box<dyn Read> = Box::new(Interruptible(std::io::stdin()));
         return Ok((

@@ -1,4 +1,4 @@
-//! Ctrl-C (SIGINT) handling: the signal only sets a flag, and the long-running loops (`run`, `convert`)
+//! Ctrl-C (SIGINT), SIGTERM and SIGHUP handling: the signal only sets a flag, and the long-running loops (`run`, `convert`)
 //! poll [`requested`] and stop with an error, so every temporary output file is dropped (deleted) instead of
 //! being renamed into place. A second signal while the first is still being honoured exits at once with the
 //! conventional status 130: the user asked twice, and temp-file guards cannot run then, but nothing partial

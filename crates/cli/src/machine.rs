@@ -25,10 +25,11 @@ pub fn read_config(path: &Path) -> miette::Result<config::MachineConfig> {
     }
     for note in &notes {
         let kind = if note.refused { "error" } else { "warning" };
-        match &note.span {
-            Some(span) => eprintln!("{span}: {kind}: {}", note.message),
-            None => eprintln!("{}: {kind}: {}", path.display(), note.message),
-        }
+        let place = note
+            .span
+            .as_ref()
+            .map_or_else(|| path.display().to_string(), ToString::to_string);
+        crate::errln!("{place}: {kind}: {}", note.message);
     }
     let refused = notes.iter().filter(|n| n.refused).count();
     if refused > 0 {

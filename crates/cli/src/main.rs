@@ -50,7 +50,14 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     // Diagnostics stay on one line each, so they can be searched and compared.
     let _ = miette::set_hook(Box::new(|_| {
-        Box::new(miette::MietteHandlerOpts::new().wrap_lines(false).build())
+        // Without colours: the whole diagnostic passes `output::printable` (escape sequences in a G-code file must
+        // not reach the terminal), which would escape miette's own colour codes too.
+        Box::new(
+            miette::MietteHandlerOpts::new()
+                .wrap_lines(false)
+                .color(false)
+                .build(),
+        )
     }));
     if let Err(e) = interrupt::install() {
         eprintln!("warning: {e}");
@@ -72,7 +79,7 @@ fn main() -> ExitCode {
             ExitCode::from(interrupt::INTERRUPTED_EXIT_CODE as u8)
         }
         Err(report) => {
-            eprintln!("{report:?}");
+            eprintln!("{}", output::printable(&format!("{report:?}")));
             ExitCode::FAILURE
         }
     }

@@ -2,7 +2,7 @@
 
 use crate::maps::WorkspaceFigures;
 use calibrate::scan::CentreResult;
-use calibrate::scara::{self, Identification};
+use calibrate::scara::{self, Identification, Measurement, Verdict};
 use printjob::RunSummary;
 use std::fmt::Write as _;
 
@@ -151,6 +151,51 @@ pub fn verify(r: &convert::VerifyReport) -> String {
             r.limited_time,
             100.0 * r.max_limit_use
         );
+    }
+    text
+}
+
+/// A SCARA fit's verdict: the residuals against the stated noise, and when the fit cannot be trusted, why, the
+/// poses that fit worst and the likely causes.
+pub fn scara_verdict(v: &Verdict, data: &[Measurement]) -> String {
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "  residuals against {} mm of measurement noise: chi-square {:.1} over {} degrees of freedom (at most {:.1}, \
+         an RMS of {:.4} mm)",
+        v.noise, v.chi_square, v.dof, v.chi_square_limit, v.rms_limit
+    );
+    if v.trustworthy {
+        let _ = writeln!(
+            text,
+            "  verdict: the fit agrees with the measurements within their noise"
+        );
+        return text;
+    }
+    let _ = writeln!(
+        text,
+        "  verdict: NOT TRUSTWORTHY, do not apply these values"
+    );
+    for problem in &v.problems {
+        let _ = writeln!(text, "    - {problem}");
+    }
+    let _ = writeln!(text, "  worst poses:");
+    for w in &v.worst {
+        let place = match data.get(w.index) {
+            Some(m) if m.line > 0 => format!("line {}", m.line),
+            _ => format!("measurement {}", w.index + 1),
+        };
+        let _ = writeln!(
+            text,
+            "    {place}: {:.4} mm from the fitted model",
+            w.distance
+        );
+    }
+    if !v.causes.is_empty() {
+        let _ = writeln!(text, "  likely causes:");
+        for cause in &v.causes {
+            let _ = writeln!(text, "    - {cause}");
+        }
     }
     text
 }

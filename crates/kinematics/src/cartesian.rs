@@ -38,6 +38,10 @@ impl Cartesian {
 }
 
 impl Kinematics for Cartesian {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
     fn name(&self) -> &'static str {
         "cartesian"
     }

@@ -276,6 +276,11 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
         SolverGeometry::Linear
     }
 
+    /// The machine itself, for a tool that acts on one kind's own parameters (the SCARA calibration pattern):
+    /// `scara::Scara::of` finds the SCARA behind a built machine, so such a tool uses the machine every front-end
+    /// built instead of building its own.
+    fn as_any(&self) -> &dyn std::any::Any;
+
     /// Checks one point against everything [`Self::check_segment`] checks (soft limits included).
     ///
     /// [`Self::inverse`] fails only where the geometry has no answer (out of reach, at the polar centre);

@@ -99,6 +99,10 @@ impl Polar {
 }
 
 impl Kinematics for Polar {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
     fn name(&self) -> &'static str {
         "polar"
     }

@@ -37,6 +37,10 @@ pub const Z: usize = 2;
 pub const SEGMENT_SAMPLE_MM: f64 = 1.0;
 /// Upper bound on samples per segment (long segments are sampled more coarsely).
 pub const SEGMENT_MAX_SAMPLES: usize = 1024;
+/// A point beyond the arm's full stretch, or inside its folded reach, by no more than this (mm) is the straight or
+/// folded arm's pose where rounding put it (the forward kinematics of a straight arm lands up to about 1e-13 mm
+/// beyond `L1 + L2`): [`ScaraGeometry::joints`] takes it as that pose instead of refusing it.
+pub const REACH_ROUNDING: f64 = 1e-9;
 
 #[derive(Debug, Clone)]
 pub struct Scara {
@@ -157,6 +161,11 @@ impl Scara {
     /// The geometry alone (for callers that compute many points without the limits).
     pub fn geometry(&self) -> ScaraGeometry {
         self.geometry
+    }
+
+    /// The SCARA behind a built machine, if it is one.
+    pub fn of(kin: &dyn Kinematics) -> Option<&Scara> {
+        kin.as_any().downcast_ref::<Scara>()
     }
 
     pub fn params(&self) -> &ScaraParams {
@@ -376,7 +385,9 @@ impl Scara {
         let (u, v) = self.arm_frame(p[0], p[1]);
         let cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
         let m = self.params.singularity_margin;
-        cos_q2.abs() <= 1.0 && 1.0 - cos_q2 * cos_q2 < m * m
+        // A straight or folded arm's pose that rounding put just beyond the reach (`REACH_ROUNDING`) is in the band.
+        let rounding = REACH_ROUNDING * (l1 + l2) / (l1 * l2);
+        cos_q2.abs() <= 1.0 + rounding && 1.0 - cos_q2 * cos_q2 < m * m
     }
 
     /// The stretches of the segment `a → b` next to an end that rests in the singular band: such an end is a
@@ -483,22 +494,30 @@ impl ScaraGeometry {
     pub fn joints(&self, x: f64, y: f64) -> Result<Joints, ReachError> {
         let (u, v) = self.arm_frame(x, y);
         let (l1, l2) = (self.link1_length, self.link2_length);
-        let cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+        let mut cos_q2 = (u * u + v * v - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
         if cos_q2 > 1.0 {
-            return Err(ReachError::OutOfReach {
-                x,
-                y,
-                distance: (u * u + v * v).sqrt(),
-                max: l1 + l2,
-            });
+            let distance = (u * u + v * v).sqrt();
+            if distance - (l1 + l2) > REACH_ROUNDING {
+                return Err(ReachError::OutOfReach {
+                    x,
+                    y,
+                    distance,
+                    max: l1 + l2,
+                });
+            }
+            cos_q2 = 1.0;
         }
         if cos_q2 < -1.0 {
-            return Err(ReachError::InsideMinimumRadius {
-                x,
-                y,
-                distance: (u * u + v * v).sqrt(),
-                min: (l1 - l2).abs(),
-            });
+            let distance = (u * u + v * v).sqrt();
+            if (l1 - l2).abs() - distance > REACH_ROUNDING {
+                return Err(ReachError::InsideMinimumRadius {
+                    x,
+                    y,
+                    distance,
+                    min: (l1 - l2).abs(),
+                });
+            }
+            cos_q2 = -1.0;
         }
         if cos_q2.is_nan() {
             return Err(ReachError::NotFinite);
@@ -551,6 +570,14 @@ impl ScaraGeometry {
     }
 }
 
+/// The shoulder range firmware can follow: at most (−π, π], where it reads the shoulder angle (atan2, as Marlin, the
+/// FEKT-SCARA module and the Klipper plug-in's step solvers take it). A move through ±π would turn the elbow motor by
+/// `2π·coupling` at one point, so the configured range is cut there and such a move is refused as a joint limit.
+pub fn within_branch_cut(limits: Option<(f64, f64)>) -> (f64, f64) {
+    let (min, max) = limits.unwrap_or((-PI, PI));
+    (min.max(-PI), max.min(PI))
+}
+
 /// Angle in `(−π, π]` (as [`ScaraGeometry::joints`] gives `q1`).
 pub fn normalise(a: f64) -> f64 {
     if a > PI {
@@ -563,6 +590,10 @@ pub fn normalise(a: f64) -> f64 {
 }
 
 impl Kinematics for Scara {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
     fn name(&self) -> &'static str {
         "scara"
     }
@@ -774,6 +805,38 @@ mod tests {
             fekt().check_point([0.0, 30.0, 0.0]),
             Err(ReachError::InsideMinimumRadius { .. })
         ));
+    }
+
+    #[test]
+    fn a_straight_or_folded_arm_is_reachable_for_every_length() {
+        // The forward kinematics of a straight arm lands a few ulps beyond L1 + L2 for about 4 in 10 lengths: such
+        // a pose (a homing pose at the straight arm) is the straight arm, not out of reach.
+        let mut refused = 0;
+        for i in 0..2000 {
+            let l1 = 90.0 + 0.0301 * i as f64;
+            for (l2, folded) in [(254.05 - l1, false), (l1 - 30.0, true)] {
+                let mut p = fekt().params().clone();
+                (p.link1_length, p.link2_length, p.base_protection_radius) = (l1, l2, 0.0);
+                let s = Scara::new(p).expect("valid");
+                for a in [0.0f64, 45.0, 90.0, 135.0, 200.0].map(f64::to_radians) {
+                    let q2 = if folded { PI } else { 0.0 };
+                    let q = s.forward(&[a, a / 3.0 + q2, 0.0]).expect("forward");
+                    let mut m = [0.0; 3];
+                    refused += usize::from(s.inverse(q, &mut m).is_err());
+                    // Where it is taken, it is the straight (folded) arm: the nozzle where the links put it.
+                    let (u, v) = (q[0].hypot(q[1]), if folded { l1 - l2 } else { l1 + l2 });
+                    assert!((u - v).abs() < 1e-9, "{l1} {l2}: {u} vs {v}");
+                }
+            }
+        }
+        assert_eq!(refused, 0);
+        // Beyond the rounding, still out of reach.
+        let mut m = [0.0; 3];
+        assert!(matches!(
+            fekt().inverse([200.0 + 2e-9, 0.0, 0.0], &mut m),
+            Err(ReachError::OutOfReach { .. })
+        ));
+        assert!(fekt().inverse([200.0 + 1e-10, 0.0, 0.0], &mut m).is_ok() && m[1] == 0.0);
     }
 
     #[test]

@@ -644,17 +644,14 @@ pub unsafe extern "C" fn jointspace_scara_pattern(
             ..Default::default()
         };
         let count = usize::try_from(count).unwrap_or(0);
-        let Some((pattern, csv)) = machine(m).and_then(|m| m.scara_pattern(count, &options)) else {
+        let Some(Ok(pattern)) = machine(m).and_then(|m| m.scara_pattern(count, &options)) else {
             return -1;
         };
-        if pattern.poses.is_empty() {
-            return -1;
-        }
-        if pattern.gcode.len() >= gcode_len || csv.len() >= template_len {
+        if pattern.gcode.len() >= gcode_len || pattern.template.len() >= template_len {
             return -2;
         }
         write_message(&pattern.gcode, gcode, gcode_len);
-        write_message(&csv, template, template_len);
+        write_message(&pattern.template, template, template_len);
         pattern.poses.len() as c_int
     })
 }

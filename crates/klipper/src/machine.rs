@@ -6,7 +6,7 @@
 use std::ffi::{CStr, CString};
 use std::path::Path;
 
-use calibrate::scara::{Pattern, PatternOptions};
+use calibrate::scara::{Pattern, PatternError, PatternOptions};
 use config::MachineConfig;
 use kinematics::{Kinematics, MachineParams, MotorMap, SolverGeometry};
 use motion::kinematic_limits::{JunctionSide, MotorLimit, caps_corners, junction_v2, split};
@@ -260,42 +260,20 @@ impl Machine {
         })
     }
 
-    /// A SCARA's calibration pattern (`calibrate scara-pattern`'s crosses) for this machine, and the measurements
-    /// file to fill in; `None` for other machines. A pose is used only where the machine puts its motors at the
-    /// pose's angles (same elbow branch) and reaches the whole cross at the first layer's height.
+    /// A SCARA's calibration pattern, made by the one pattern maker `calibrate scara-pattern` uses
+    /// (`calibrate::scara::machine_pattern`: every pose through this machine's inverse, from where homing leaves the
+    /// arm); `None` for other machines.
     pub fn scara_pattern(
         &self,
         count: usize,
         options: &PatternOptions,
-    ) -> Option<(Pattern, String)> {
-        let MachineParams::Scara(params) = &self.machine.config.params else {
-            return None;
-        };
-        let kin = self.kinematics();
-        let (h, z) = (options.cross_size / 2.0, options.layer_height);
-        let admissible = |(a, b): (f64, f64), [x, y]: [f64; 2]| {
-            let mut motors = [0.0; 3];
-            let same_pose = kin.inverse([x, y, z], &mut motors).is_ok()
-                && (motors[0] - a).abs() < 1e-9
-                && (motors[1] - b).abs() < 1e-9;
-            let arms = [
-                ([x - h, y, z], [x + h, y, z]),
-                ([x, y - h, z], [x, y + h, z]),
-            ];
-            same_pose && arms.iter().all(|(p, q)| kin.check_segment(*p, *q).is_ok())
-        };
-        let geometry = calibrate::scara::ScaraGeometry::from(params);
-        let home = self.declared_home.or(self.machine.setup.home_position);
-        let mut motors = [0.0; 3];
+    ) -> Option<Result<Pattern, PatternError>> {
+        let scara = kinematics::scara::Scara::of(self.kinematics())?;
         let options = PatternOptions {
-            home_pose: home
-                .filter(|p| kin.inverse(*p, &mut motors).is_ok())
-                .map(|_| (motors[0], motors[1])),
+            home: self.declared_home.or(self.machine.setup.home_position),
             ..options.clone()
         };
-        let pattern = calibrate::scara::pattern(&geometry, count, &admissible, &options);
-        let template = calibrate::scara::measurement_template(&pattern.poses);
-        Some((pattern, template))
+        Some(calibrate::scara::machine_pattern(scara, count, &options))
     }
 
     /// The `minimum_cruise_ratio` of the config (Klipper's lookahead uses the same).

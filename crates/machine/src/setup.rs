@@ -4,7 +4,6 @@ use config::MachineConfig;
 use kinematics::{Kinematics, MachineParams, MotorMap, MotorUnit, TurningLimits};
 use motion::kinematic_limits::MotorLimit;
 use motion::limits::{CentreTurn, ExtruderLimits, PlannerConfig, VelocityLimits};
-use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// Why a machine could not be set up.
@@ -72,8 +71,7 @@ impl MachineSetup {
 fn read_as_firmware(params: &MachineParams) -> MachineParams {
     let mut params = params.clone();
     if let MachineParams::Scara(p) = &mut params {
-        let (min, max) = p.shoulder_limits.unwrap_or((-PI, PI));
-        p.shoulder_limits = Some((min.max(-PI), max.min(PI)));
+        p.shoulder_limits = Some(kinematics::scara::within_branch_cut(p.shoulder_limits));
     }
     params
 }

@@ -106,8 +106,24 @@ pub struct RunSummary {
 
 /// Plan `input` on the machine (as `options.plan` says) and generate every motor's steps, audited; the summary
 /// of the run. `cancelled` is polled as the motors step (e.g. Ctrl-C): when it turns true the run fails and
-/// writes nothing.
+/// writes nothing. A run that fails leaves nothing behind, not even the step files' folder it made.
 pub fn run(
+    machine: &Machine,
+    input: impl BufRead,
+    name: &str,
+    options: &RunOptions,
+    cancelled: fn() -> bool,
+) -> Result<RunSummary, RunError> {
+    let made_here = options.steps.as_ref().filter(|dir| !dir.exists());
+    let result = run_to_files(machine, input, name, options, cancelled);
+    if let (Err(_), Some(dir)) = (&result, made_here) {
+        // Its files were never committed; only an empty folder is removed.
+        let _ = std::fs::remove_dir(dir);
+    }
+    result
+}
+
+fn run_to_files(
     machine: &Machine,
     input: impl BufRead,
     name: &str,

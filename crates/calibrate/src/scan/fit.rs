@@ -2,6 +2,7 @@
 //! screened against their median and averaged (with the covariance of the mean), the magnets are placed on the
 //! bed with the fitted offsets, the ring is fitted to them, and what looked wrong is flagged.
 
+use super::detections::DetectionSlots;
 use super::error::ScanError;
 use super::params::ScanParams;
 use super::result::{CentreResult, Detection, MagnetRecord};
@@ -38,6 +39,26 @@ pub fn centre_from_detections(
         ..params.clone()
     };
     assemble(&p, near, far, 0.0, 0)
+}
+
+/// The centre from the detections of a ring of `params.magnet_count` magnets: a magnet without a detection anywhere
+/// on the ring (the last slot included) is flagged as missing; detections of more magnets than the ring has are
+/// refused.
+pub fn centre_from_ring(
+    params: &ScanParams,
+    mut slots: DetectionSlots,
+) -> Result<CentreResult, ScanError> {
+    let n = params.magnet_count;
+    let found = slots.near.len().max(slots.far.len());
+    if found > n {
+        return Err(ScanError::InvalidParams(format!(
+            "the detections name magnet {} but the ring has {n} magnets",
+            found - 1
+        )));
+    }
+    slots.near.resize(n, None);
+    slots.far.resize(n, None);
+    centre_from_detections(params, slots.near, slots.far)
 }
 
 /// Combine the pairs robustly and build the magnet map and the result.

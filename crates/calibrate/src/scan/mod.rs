@@ -48,7 +48,7 @@ pub use detections::{
 };
 pub use error::{HardwareError, ScanError};
 pub(crate) use fit::median;
-pub use fit::{centre_from_detections, pair_offsets};
+pub use fit::{centre_from_detections, centre_from_ring, pair_offsets};
 pub use hardware::{ScanHardware, trapezoid_time};
 pub use params::{PeakMethod, ScanParams};
 pub(crate) use peaks::parabola_vertex;

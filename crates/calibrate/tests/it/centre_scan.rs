@@ -450,3 +450,107 @@ fn a_written_scan_file_gives_the_same_result() {
     assert!((again.arm_zero_offset - r.arm_zero_offset).abs() < 1e-12);
     assert!((again.arm_lateral_offset - r.arm_lateral_offset).abs() < 1e-12);
 }
+
+/// The ring's size is the file's `magnets` line (or the caller's): a magnet missing in the last slot is flagged as
+/// one missing anywhere else is; an index beyond the ring is refused at its line and column.
+#[test]
+fn a_missing_last_magnet_is_flagged_from_a_file() {
+    use calibrate::scan::{centre_from_ring, parse_detections, write_detections};
+    let (_, r) = scan_error(12, PeakMethod::Interpolated);
+    let n = r.magnet_count;
+    let text = write_detections(&r);
+    assert!(text.contains(&format!("\nmagnets,{n}\n")), "{text}");
+    let last = format!("{},", n - 1);
+    let without_last: String = text
+        .lines()
+        .filter(|l| !l.starts_with(&last))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let slots = parse_detections(&without_last, "scan.csv").expect("parse");
+    assert_eq!((slots.ring, slots.near.len()), (Some(n), n - 1));
+    let params = ScanParams {
+        magnet_count: n,
+        ..ScanParams::default()
+    };
+    let fit = centre_from_ring(&params, slots).expect("fit");
+    let missing = format!("magnet {} was not found", n - 1);
+    assert!(
+        fit.flags.iter().any(|f| f.contains(&missing)),
+        "{:?}",
+        fit.flags
+    );
+    assert_eq!(fit.magnet_count, n);
+    // A magnet index the ring does not have: refused where it stands.
+    let beyond = text.replacen("\n0,near,", &format!("\n{n},near,"), 1);
+    let line = beyond
+        .lines()
+        .position(|l| l.starts_with(&format!("{n},near,")))
+        .expect("the row")
+        + 1;
+    let error = parse_detections(&beyond, "scan.csv").expect_err("refused");
+    assert!(
+        error
+            .to_string()
+            .starts_with(&format!("scan.csv:{line}:1: magnet {n} on a ring of {n}")),
+        "{error}"
+    );
+    // More detections than the caller's ring: refused.
+    let slots = parse_detections(&without_last, "scan.csv").expect("parse");
+    let small = ScanParams {
+        magnet_count: n - 2,
+        ..ScanParams::default()
+    };
+    assert!(centre_from_ring(&small, slots).is_err());
+}
+
+/// The detections file keeps each peak's height: a magnet half as strong as the others is flagged from the file as
+/// it is from the scan itself; a file without the column (older scans) still reads.
+#[test]
+fn a_weak_magnet_is_flagged_from_a_file() {
+    use calibrate::scan::{centre_from_ring, parse_detections, write_detections};
+    let (_, r) = scan_error(13, PeakMethod::Interpolated);
+    let params = ScanParams {
+        magnet_count: r.magnet_count,
+        ..ScanParams::default()
+    };
+    let text = write_detections(&r);
+    let weak: String = text
+        .lines()
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            match (
+                cells.first(),
+                cells.get(4).and_then(|c| c.parse::<f64>().ok()),
+            ) {
+                (Some(&"3"), Some(peak)) => format!("{},{}\n", cells[..4].join(","), 0.5 * peak),
+                _ => format!("{l}\n"),
+            }
+        })
+        .collect();
+    let fit = centre_from_ring(&params, parse_detections(&weak, "weak.csv").expect("parse"))
+        .expect("fit");
+    assert!(
+        fit.flags.iter().any(|f| f.starts_with("magnet 3 peaks at")),
+        "{:?}",
+        fit.flags
+    );
+    let unflagged = centre_from_ring(&params, parse_detections(&text, "scan.csv").expect("parse"))
+        .expect("fit");
+    assert!(
+        !unflagged.flags.iter().any(|f| f.contains("peaks at")),
+        "{:?}",
+        unflagged.flags
+    );
+    // Without the column: read, no peak to judge.
+    let old: String = weak
+        .lines()
+        .map(|l| match l.rsplit_once(',') {
+            Some((head, _)) if !l.starts_with('#') && !l.starts_with("magnets") => {
+                format!("{head}\n")
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let slots = parse_detections(&old, "old.csv").expect("parse");
+    assert!(slots.near.iter().flatten().all(|d| d.peak == 0.0));
+}

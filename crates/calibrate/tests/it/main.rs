@@ -4,4 +4,5 @@
 mod centre_scan;
 mod circle_fits;
 mod scara_ident;
+mod scara_pattern;
 mod sweep_scan;

@@ -1,6 +1,6 @@
 //! SCARA identification on simulated measurements around the FEKT-SCARA geometry: recovery accuracy,
 //! the analytic Jacobian against finite differences, non-identifiable pose sets, pose suggestion, the model
-//! against `kinematics::scara`, and the calibration pattern.
+//! against `kinematics::scara`.
 
 use calibrate::scara::{self, Measurement, ScaraError, ScaraGeometry};
 use kinematics::{ElbowBranch, Kinematics, ScaraFrame, ScaraParams, StepperParams};
@@ -244,72 +244,4 @@ fn model_agrees_with_kinematics_scara() {
         let q = g.forward(a, b);
         assert!((p[0] - q[0]).abs() < 1e-9 && (p[1] - q[1]).abs() < 1e-9);
     }
-}
-
-#[test]
-fn pattern_gcode_lists_poses_and_crosses_at_their_positions() {
-    let g = ScaraGeometry::fekt();
-    let poses = scara::suggest_poses(&g, &[], &candidates(g.elbow_coupling), 5);
-    let text = scara::calibration_pattern_gcode(&g, &poses, &scara::PatternOptions::default());
-    let pose_lines: Vec<&str> = text.lines().filter(|l| l.starts_with("; pose ")).collect();
-    assert_eq!(pose_lines.len(), 5);
-    assert_eq!(text.lines().filter(|l| l.starts_with("G1 X")).count(), 10);
-    assert!(
-        text.lines().filter(|l| l.starts_with("G0 X")).count() > 10,
-        "travels have via points"
-    );
-    // Each cross's horizontal stroke is centred on the pose's forward position, computed here directly: the G0
-    // just before the pose's first G1, and that G1.
-    let lines: Vec<&str> = text.lines().collect();
-    let field = |line: &str, key: char| -> f64 {
-        line.split_whitespace()
-            .find(|w| w.starts_with(key))
-            .and_then(|w| w[1..].parse().ok())
-            .expect("field")
-    };
-    let forward = |a: f64, b: f64| {
-        let (q1, q2) = (a, b - a / 3.0);
-        (
-            100.0 * q1.cos() + 100.0 * (q1 + q2).cos(),
-            100.0 * q1.sin() + 100.0 * (q1 + q2).sin(),
-        )
-    };
-    for (i, &(a, b)) in poses.iter().enumerate() {
-        let at = lines
-            .iter()
-            .position(|l| l.starts_with(&format!("; pose {} ", i + 1)))
-            .expect("pose line");
-        let first_print = at
-            + lines[at..]
-                .iter()
-                .position(|l| l.starts_with("G1 X"))
-                .expect("a G1");
-        let (start, end) = (
-            field(lines[first_print - 1], 'X'),
-            field(lines[first_print], 'X'),
-        );
-        assert!((0.5 * (start + end) - forward(a, b).0).abs() < 0.002);
-        assert!(pose_lines[i].contains(&format!("motor_a_deg={:.3}", a.to_degrees())));
-        // Travels between crosses turn the joints: every via point lies between the two poses' distances from
-        // the shoulder (it depends on q2 alone), never through the base.
-        if i > 0 {
-            let (pa, pb) = poses[i - 1];
-            let radius = |(x, y): (f64, f64)| x.hypot(y);
-            let (r0, r1) = (radius(forward(pa, pb)), radius(forward(a, b)));
-            let previous_end = lines[..at]
-                .iter()
-                .rposition(|l| l.starts_with("G1 X"))
-                .expect("last print");
-            for l in &lines[previous_end + 1..first_print - 1] {
-                if l.starts_with("G0 X") {
-                    let r = field(l, 'X').hypot(field(l, 'Y'));
-                    assert!(
-                        r >= r0.min(r1) - 0.01 && r <= r0.max(r1) + 0.01,
-                        "{l}: r {r} outside [{r0}, {r1}]"
-                    );
-                }
-            }
-        }
-    }
-    assert!(!text.contains("-0.000"));
 }

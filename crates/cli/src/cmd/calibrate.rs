@@ -4,10 +4,12 @@
 use crate::magnets::{SimulatedBed, draw_magnet_map, simulate_scan};
 use crate::report;
 use calibrate::scan::ScanParams;
-use calibrate::scara::{self, Measurement, ScaraGeometry};
+use calibrate::scara::{self, ScaraGeometry};
+use kinematics::ScaraFrame;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 #[derive(Debug, clap::Subcommand)]
 pub enum Command {
@@ -37,9 +39,10 @@ pub struct CentreArgs {
     /// tilted shifts dx and dy by that much and no scan can see it; it is added to the reported uncertainty.
     #[arg(long, default_value_t = 0.05, value_name = "MM")]
     pub sensor_alignment: f64,
-    /// Magnets on the bed rim (simulation).
-    #[arg(long, default_value_t = 16)]
-    pub magnets: usize,
+    /// Magnets on the bed rim: the ring's size (default 16 for `--simulate`; for `--scan`, the file's `magnets`
+    /// line, which scans written by jointspace carry). A magnet the scan did not find is flagged as missing.
+    #[arg(long)]
+    pub magnets: Option<usize>,
     /// True arm offsets `dx,dy` of the simulated machine (mm); random up to 2 mm when not given.
     #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
     pub offset: Option<String>,
@@ -61,12 +64,21 @@ pub struct CentreArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct ScaraArgs {
-    /// Measurements: CSV `motor_a_deg,motor_b_deg,x_mm,y_mm` (header line and `#` comments allowed).
+    /// Measurements: the file `calibrate scara-pattern` (or `JOINTSPACE_SCARA_PATTERN`) wrote, filled in: an optional
+    /// `frame,standard|xscara` line, then CSV `motor_a_deg,motor_b_deg,x_mm,y_mm` (x, y: the printer's X and Y).
     #[arg(long, value_name = "CSV")]
     pub measurements: PathBuf,
-    /// Configuration whose geometry starts the fit (default: FEKT-SCARA 100/100 mm, ECR 3).
+    /// Configuration whose geometry starts the fit and whose frame the file must state (default: FEKT-SCARA
+    /// 100/100 mm, ECR 3).
     #[arg(short = 'c', long = "config")]
     pub config: Option<PathBuf>,
+    /// How the cross centres were measured; gives the measurement noise the residuals are judged against.
+    #[arg(long, value_enum, default_value_t = Method::Calipers)]
+    pub method: Method,
+    /// Measurement noise (mm, 1σ per coordinate), instead of the method's (calipers 0.02, scanner 0.03,
+    /// microscope 0.005).
+    #[arg(long, value_name = "MM")]
+    pub noise: Option<f64>,
     /// Result file (JSON).
     #[arg(short = 'o', long = "out", default_value = "scara.json")]
     pub out: PathBuf,
@@ -75,17 +87,44 @@ pub struct ScaraArgs {
     pub json: bool,
 }
 
+/// How the crosses were measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// Calipers from two bed edges (0.02 mm).
+    Calipers,
+    /// A flatbed scan of the print with the bed's corner marks (0.03 mm).
+    Scanner,
+    /// A measuring microscope or a camera on the toolhead (0.005 mm).
+    Microscope,
+}
+
+impl From<Method> for scara::MeasuringMethod {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Calipers => scara::MeasuringMethod::Calipers,
+            Method::Scanner => scara::MeasuringMethod::Scanner,
+            Method::Microscope => scara::MeasuringMethod::Microscope,
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct PatternArgs {
-    /// Configuration of the arm (default: FEKT-SCARA 100/100 mm, ECR 3).
+    /// Configuration of the arm (default: the FEKT-SCARA example, 100/100 mm, ECR 3, 60 mm base radius).
     #[arg(short = 'c', long = "config")]
     pub config: Option<PathBuf>,
     /// Number of crosses.
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = scara::DEFAULT_POSES)]
     pub poses: usize,
+    /// Size of each cross, tip to tip (mm).
+    #[arg(long, default_value_t = 6.0, value_name = "MM")]
+    pub cross: f64,
     /// Output G-code.
     #[arg(short = 'o', long = "out", default_value = "scara-pattern.gcode")]
     pub out: PathBuf,
+    /// The measurements file to fill in: each cross's motor angles, the frame, empty x_mm and y_mm.
+    #[arg(long, default_value = "scara-measurements.csv", value_name = "CSV")]
+    pub template: PathBuf,
 }
 
 pub fn run(command: Command) -> miette::Result<ExitCode> {
@@ -96,27 +135,50 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
     }
 }
 
-/// Scan settings for the arguments.
-fn scan_params(args: &CentreArgs) -> ScanParams {
+/// The ring's size a simulated scan has unless `--magnets` says otherwise.
+const SIMULATED_MAGNETS: usize = 16;
+
+/// Scan settings for the arguments and a ring of `magnets`.
+fn scan_params(args: &CentreArgs, magnets: usize) -> ScanParams {
     ScanParams {
-        magnet_count: args.magnets,
+        magnet_count: magnets,
         sensor_alignment: args.sensor_alignment,
         ..ScanParams::default()
     }
 }
 
+/// The centre from a detections file: the ring's size from `--magnets` or the file's `magnets` line (both must
+/// agree); without either, the highest magnet index found, with a warning that a missing last magnet goes unseen.
+fn centre_from_file(args: &CentreArgs, path: &Path) -> miette::Result<calibrate::CentreResult> {
+    crate::output::register_input(path);
+    let name = path.display().to_string();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| miette::miette!("cannot read {name}: {e}"))?;
+    let slots =
+        calibrate::scan::parse_detections(&text, &name).map_err(|e| miette::miette!("{e}"))?;
+    let found = slots.near.len().max(slots.far.len());
+    let magnets = match (args.magnets, slots.ring) {
+        (Some(given), Some(stated)) if given != stated => miette::bail!(
+            "{name}: the file's ring has {stated} magnets (its `magnets` line), --magnets says {given}"
+        ),
+        (Some(n), _) | (None, Some(n)) => n,
+        (None, None) => {
+            crate::errln!(
+                "{name}: warning: the ring's size is not known (no `magnets` line, no --magnets): taking {found} \
+                 from the highest magnet index, so a missing last magnet cannot be flagged"
+            );
+            found
+        }
+    };
+    calibrate::scan::centre_from_ring(&scan_params(args, magnets), slots)
+        .map_err(|e| miette::miette!("{name}: {e}"))
+}
+
 fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
-    let params = scan_params(&args);
     let (result, truth) = if let Some(path) = &args.scan {
-        crate::output::register_input(path);
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| miette::miette!("cannot read {}: {e}", path.display()))?;
-        let slots = calibrate::scan::parse_detections(&text, &path.display().to_string())
-            .map_err(|e| miette::miette!("{e}"))?;
-        let result = calibrate::scan::centre_from_detections(&params, slots.near, slots.far)
-            .map_err(|e| miette::miette!("{e}"))?;
-        (result, None)
+        (centre_from_file(&args, path)?, None)
     } else if args.simulate {
+        let params = scan_params(&args, args.magnets.unwrap_or(SIMULATED_MAGNETS));
         let (result, truth) = simulate_scan(&simulated_bed(&args)?, &params)?;
         (result, Some(truth))
     } else {
@@ -169,7 +231,7 @@ fn simulated_bed(args: &CentreArgs) -> miette::Result<SimulatedBed> {
         None => None,
     };
     Ok(SimulatedBed {
-        magnets: args.magnets,
+        magnets: args.magnets.unwrap_or(SIMULATED_MAGNETS),
         noise_mt: args.noise,
         seed: args.seed,
         offset,
@@ -177,23 +239,30 @@ fn simulated_bed(args: &CentreArgs) -> miette::Result<SimulatedBed> {
 }
 
 fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
-    let start = start_geometry(args.config.as_deref())?;
+    let (start, config_frame) = start_geometry(args.config.as_deref())?;
     crate::output::register_input(&args.measurements);
+    let name = args.measurements.display().to_string();
     let text = std::fs::read_to_string(&args.measurements)
-        .map_err(|e| miette::miette!("cannot read {}: {e}", args.measurements.display()))?;
-    let data: Vec<Measurement> =
-        scara::parse_measurements(&text, &args.measurements.display().to_string())
-            .map_err(|e| miette::miette!("{e}"))?;
-    let fit = scara::identify(&data, &start).map_err(|e| miette::miette!("{e}"))?;
+        .map_err(|e| miette::miette!("cannot read {name}: {e}"))?;
+    let file = scara::parse_measurement_file(&text, &name).map_err(|e| miette::miette!("{e}"))?;
+    let frame = measurement_frame(&file, config_frame, &name)?;
+    let noise = args
+        .noise
+        .unwrap_or_else(|| scara::MeasuringMethod::from(args.method).noise());
+    if !(noise.is_finite() && noise > 0.0) {
+        miette::bail!("--noise must be a positive number of mm, not {noise}");
+    }
+    let data = &file.rows;
+    let fit = scara::identify_in_frame(data, &start, frame).map_err(|e| miette::miette!("{e}"))?;
+    let verdict = scara::judge(data, &fit, &start, frame, noise);
     let g = &fit.geometry;
-    let mut text = report::scara_fit(&fit, data.len());
-    let id = &fit.identifiability;
     let json = serde_json::json!({
         "link1_length": g.link1_length, "link2_length": g.link2_length,
         "offset_x": g.offset_x, "offset_y": g.offset_y,
         "shoulder_zero_deg": g.shoulder_zero.to_degrees(), "elbow_zero_deg": g.elbow_zero.to_degrees(),
         "elbow_coupling": g.elbow_coupling, "sigma": fit.sigma.to_vec(), "rms_mm": fit.rms,
-        "condition_number": id.condition_number,
+        "condition_number": fit.identifiability.condition_number,
+        "frame": scara::frame_name(frame), "verdict": verdict,
     });
     crate::output::write_output(&args.out, |w| Ok(serde_json::to_writer_pretty(w, &json)?))
         .map_err(super::plain)?;
@@ -203,48 +272,103 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
             serde_json::to_string_pretty(&json).unwrap_or_default()
         );
     } else {
+        let mut text = report::scara_fit(&fit, data.len());
+        text += &report::scara_verdict(&verdict, data);
         if !crate::output::is_stdio(&args.out) {
             let _ = writeln!(text, "  result written to {}", args.out.display());
         }
         crate::out!("{text}");
     }
-    Ok(ExitCode::SUCCESS)
+    if verdict.trustworthy {
+        return Ok(ExitCode::SUCCESS);
+    }
+    crate::errln!(
+        "error: {name}: the fit is not trustworthy: {}",
+        verdict.problems.join("; ")
+    );
+    Ok(ExitCode::FAILURE)
+}
+
+/// The frame the measurements count their motor angles in: the file's, which must be the machine's.
+fn measurement_frame(
+    file: &scara::MeasurementFile,
+    config: Option<ScaraFrame>,
+    name: &str,
+) -> miette::Result<ScaraFrame> {
+    match (file.frame, config) {
+        (Some((stated, line)), Some(machine)) if stated != machine => Err(miette::miette!(
+            "{name}:{line}:1: the measurements are in frame `{}`, the configured machine's frame is `{}`: \
+             they were taken on another machine or the config's `frame` is wrong",
+            scara::frame_name(stated),
+            scara::frame_name(machine)
+        )),
+        (Some((stated, _)), _) => Ok(stated),
+        (None, machine) => Ok(machine.unwrap_or_default()),
+    }
 }
 
 fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
-    let g = start_geometry(args.config.as_deref())?;
-    // Crosses well outside the base and in front of the shoulder (the FEKT-SCARA work area).
-    let admissible = |_: (f64, f64), p: [f64; 2]| {
-        let r = (p[0] - g.offset_x).hypot(p[1] - g.offset_y);
-        r > 70.0 && p[1] > g.offset_y + 20.0
+    let (kin, home) = pattern_machine(args.config.as_deref())?;
+    for path in [&args.out, &args.template] {
+        crate::output::refuse_input(path).map_err(super::plain)?;
+    }
+    let options = scara::PatternOptions {
+        cross_size: args.cross,
+        home,
+        ..scara::PatternOptions::default()
     };
-    let pattern = scara::pattern(
-        &g,
-        args.poses,
-        &admissible,
-        &scara::PatternOptions::default(),
-    );
-    let (poses, text) = (&pattern.poses, &pattern.gcode);
-    crate::output::write_output(&args.out, |w| Ok(w.write_all(text.as_bytes())?))
+    let scara = kinematics::scara::Scara::of(kin.as_ref())
+        .ok_or_else(|| miette::miette!("not a SCARA machine"))?;
+    let pattern =
+        scara::machine_pattern(scara, args.poses, &options).map_err(|e| miette::miette!("{e}"))?;
+    crate::output::write_output(&args.out, |w| Ok(w.write_all(pattern.gcode.as_bytes())?))
         .map_err(super::plain)?;
+    crate::output::write_output(&args.template, |w| {
+        Ok(w.write_all(pattern.template.as_bytes())?)
+    })
+    .map_err(super::plain)?;
     crate::outln!(
-        "{} crosses written to {} (condition number of the poses {:.1}); print it, measure each cross centre and \
-         run `jointspace calibrate scara --measurements points.csv`",
-        poses.len(),
+        "{} crosses written to {} (condition number of the poses {:.1}), their motor angles to {}; print it, \
+         measure each cross centre, fill in x_mm and y_mm and run `jointspace calibrate scara -c printer.cfg \
+         --measurements {}`",
+        pattern.poses.len(),
         args.out.display(),
-        pattern.condition_number
+        pattern.condition_number,
+        args.template.display(),
+        args.template.display()
     );
     Ok(ExitCode::SUCCESS)
 }
 
-/// The SCARA geometry of a config, or FEKT-SCARA's nominal one.
-fn start_geometry(config: Option<&Path>) -> miette::Result<ScaraGeometry> {
+/// A machine's kinematics and where homing leaves it.
+type HomedMachine = (Arc<dyn kinematics::Kinematics>, Option<[f64; 3]>);
+
+/// The SCARA a pattern is made for, with where homing leaves it: the config's machine as every command builds it,
+/// or the FEKT-SCARA example.
+fn pattern_machine(config: Option<&Path>) -> miette::Result<HomedMachine> {
     let Some(path) = config else {
-        return Ok(ScaraGeometry::fekt());
+        let example = kinematics::scara::Scara::new(kinematics::ScaraParams::fekt_example())
+            .map_err(|e| miette::miette!("{e}"))?;
+        return Ok((Arc::new(example), None));
+    };
+    let machine = crate::machine::load_machine(path)?;
+    if kinematics::scara::Scara::of(machine.setup.kinematics.as_ref()).is_none() {
+        miette::bail!("{}: not a SCARA machine", path.display());
+    }
+    Ok((
+        machine.setup.kinematics.clone(),
+        machine.setup.home_position,
+    ))
+}
+
+/// The SCARA geometry of a config (in the printer's X and Y) and its frame, or FEKT-SCARA's nominal one.
+fn start_geometry(config: Option<&Path>) -> miette::Result<(ScaraGeometry, Option<ScaraFrame>)> {
+    let Some(path) = config else {
+        return Ok((ScaraGeometry::fekt(), None));
     };
     let machine = crate::machine::load_machine(path)?;
     match machine.config.params {
-        kinematics::MachineParams::Scara(p) => Ok(ScaraGeometry::from(&p)),
+        kinematics::MachineParams::Scara(p) => Ok((ScaraGeometry::from(&p), Some(p.frame))),
         _ => Err(miette::miette!("{}: not a SCARA machine", path.display())),
     }
 }

@@ -195,7 +195,7 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
         print_text(&args, &name, stats, verification.as_ref(), &options);
     }
     if let Some(problem) = problem {
-        eprintln!("{}: verification failed: {problem}", args.out.display());
+        crate::errln!("{}: verification failed: {problem}", args.out.display());
         return Ok(ExitCode::FAILURE);
     }
     Ok(ExitCode::SUCCESS)
@@ -204,13 +204,15 @@ fn convert_file(args: Args) -> Result<ExitCode, Failure> {
 /// The reader's warnings on standard error, the first 20 of them.
 fn print_warnings(name: &str, (warnings, total): &(Vec<gcode::Warning>, u64)) {
     for w in warnings.iter().take(20) {
-        eprintln!(
+        crate::errln!(
             "{name}:{}:{}: warning: {}",
-            w.span.line, w.span.column, w.message
+            w.span.line,
+            w.span.column,
+            w.message
         );
     }
     if *total > 20 {
-        eprintln!("{name}: … and {} more warnings", total - 20);
+        crate::errln!("{name}: … and {} more warnings", total - 20);
     }
 }
 
@@ -335,7 +337,7 @@ fn print_text(
         );
         // With `-o -` standard output is the G-code: the report goes to standard error.
         if output::is_stdio(&args.out) {
-            eprintln!("{text}");
+            crate::errln!("{text}");
         } else {
             crate::outln!("{text}");
         }

@@ -153,3 +153,39 @@ fn errors_beyond_the_listed_ones_still_count() {
         );
     }
 }
+
+/// A SCARA whose joint endstops hold the arm straight loads for every arm length: the straight arm's homing pose,
+/// which the forward kinematics puts a few ulps beyond `L1 + L2` for many lengths, is not refused as out of reach.
+#[test]
+fn a_straight_arm_homing_pose_loads_for_every_arm_length() {
+    let example = std::fs::read_to_string(example_machine("scara")).expect("config");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("part.gcode");
+    std::fs::write(&input, "G28\nG1 Z1 F600\n").expect("write input");
+    let mut refused = Vec::new();
+    for i in 0..40 {
+        let l1 = 90.0 + 1.5125 * i as f64;
+        let l2 = 254.05 - l1;
+        // Shoulder endstop at 45°, elbow motor at 45°/3: the elbow joint at 0°, the arm straight.
+        let text = example
+            .replace("position_endstop: 105", "position_endstop: 15")
+            .replace("link1_length: 100", &format!("link1_length: {l1}"))
+            .replace("link2_length: 100", &format!("link2_length: {l2}"))
+            .replace("base_protection_radius: 60", "base_protection_radius: 0");
+        let config = scratch.path().join("printer.cfg");
+        std::fs::write(&config, text).expect("write config");
+        let output = Command::new(binary())
+            .args(["check", "-c"])
+            .arg(&config)
+            .arg(&input)
+            .output()
+            .expect("run jointspace");
+        if output.status.code() != Some(0) {
+            refused.push(format!(
+                "{l1}/{l2}: {}",
+                String::from_utf8_lossy(&output.stderr)
+            ));
+        }
+    }
+    assert!(refused.is_empty(), "{refused:#?}");
+}

@@ -38,11 +38,15 @@ fn wait_for_output(dir: &Path, limit: Duration) -> bool {
 }
 
 fn send_sigint(pid: u32) {
+    send_signal(pid, "INT");
+}
+
+fn send_signal(pid: u32, signal: &str) {
     let status = Command::new("kill")
-        .args(["-INT", &pid.to_string()])
+        .args([&format!("-{signal}"), &pid.to_string()])
         .status()
         .expect("run kill");
-    assert!(status.success(), "kill -INT {pid} failed");
+    assert!(status.success(), "kill -{signal} {pid} failed");
 }
 
 /// Waits for the child at most `limit`; kills it (and fails) if it does not stop.
@@ -62,13 +66,17 @@ fn wait_or_kill(child: &mut Child, limit: Duration) -> std::process::ExitStatus 
 }
 
 fn check_interrupted(args: &[&std::ffi::OsStr], stream: CircleStream, out: &Path) {
+    check_stopped_by(args, stream, out, "INT");
+}
+
+fn check_stopped_by(args: &[&std::ffi::OsStr], stream: CircleStream, out: &Path, signal: &str) {
     let (mut child, writer) = start_streaming(args, stream);
     // Temporary files show the run is under way; a command that keeps its output in memory until the end
     // shows none, so after a few seconds it is interrupted anyway.
     wait_for_output(out, Duration::from_secs(3));
     // Let it write for a while, so buffers and temporary files are mid-way.
     std::thread::sleep(Duration::from_millis(300));
-    send_sigint(child.id());
+    send_signal(child.id(), signal);
     let status = wait_or_kill(&mut child, Duration::from_secs(10));
     let _ = writer.join();
     let mut stderr = String::new();
@@ -85,6 +93,30 @@ fn check_interrupted(args: &[&std::ffi::OsStr], stream: CircleStream, out: &Path
         left.is_empty(),
         "an interrupted run left files behind ({status}): {left:?}"
     );
+    let folders: Vec<_> = std::fs::read_dir(out)
+        .expect("out lists")
+        .flatten()
+        .collect();
+    assert!(folders.is_empty(), "an interrupted run left {folders:?}");
+}
+
+/// SIGTERM (a service manager, `kill`) stops a run as Ctrl-C does: no temporary file, no empty step folder.
+#[test]
+fn sigterm_during_run_leaves_no_output() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let out = scratch.path().join("out");
+    std::fs::create_dir_all(&out).expect("output folder");
+    let config = example_machine("cartesian");
+    let steps = out.join("steps");
+    let args: Vec<&std::ffi::OsStr> = vec![
+        "run".as_ref(),
+        "-c".as_ref(),
+        config.as_os_str(),
+        "-".as_ref(),
+        "--steps".as_ref(),
+        steps.as_os_str(),
+    ];
+    check_stopped_by(&args, CircleStream::new(), &out, "TERM");
 }
 
 #[test]

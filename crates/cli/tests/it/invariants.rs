@@ -27,7 +27,7 @@ const KIND_SWITCHES: [(&str, &str); 4] = [
     ),
     (
         "klipper/src/machine.rs",
-        "the SCARA pattern is made from the SCARA's parameters",
+        "the plug-in asks for one kind's own parameters by key (`printer_value`)",
     ),
 ];
 

@@ -2,6 +2,7 @@
 //! time, determinism, interruption) and fuzz regressions, each running the built binary as a user would; and the
 //! tree's structural invariants (`structure.rs`).
 
+mod calibration;
 mod catalogue;
 mod check;
 mod common;

@@ -494,3 +494,63 @@ fn a_full_output_stops_the_run_early_with_its_error() {
         "stopped only at line {stopped_at}: {stderr}"
     );
 }
+
+/// A G-code file with terminal escape sequences (retitle, clear screen, a C1 CSI) in a refused line: the
+/// diagnostic shows them escaped, never raw.
+#[test]
+fn escape_sequences_in_a_file_never_reach_the_terminal() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("evil.gcode");
+    let evil = "G28\nG1 X10 Y10 F3000\nG1 X\u{1b}]0;pwned\u{7}\u{1b}[2J\u{9b}31m5\n";
+    std::fs::write(&input, evil).expect("write input");
+    let machine = example_machine("cartesian");
+    for command in ["run", "check"] {
+        let out = jointspace(
+            scratch.path(),
+            &[
+                command,
+                "-c",
+                &machine.to_string_lossy(),
+                &input.to_string_lossy(),
+            ],
+        );
+        assert_ne!(out.status.code(), Some(0), "{command} accepted the line");
+        for (stream, bytes) in [("stderr", &out.stderr), ("stdout", &out.stdout)] {
+            let text = String::from_utf8_lossy(bytes);
+            assert!(
+                !text.contains(['\u{1b}', '\u{7}', '\u{9b}']),
+                "{command}: a raw control character on {stream}:\n{text:?}"
+            );
+        }
+        if command == "run" {
+            // The refused line is shown, escaped.
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(stderr.contains("X\\x1B]0;pwned\\x07"), "{stderr}");
+        }
+    }
+}
+
+/// A closed standard input is not an empty file, and a closed standard output is not a success.
+#[test]
+fn closed_standard_streams_are_errors() {
+    let machine = example_machine("cartesian");
+    let run = |args: &[&str], close: &str| {
+        // The shell closes the stream (`<&-`, `>&-`) before jointspace starts.
+        let line = format!("{} {} {close}", binary(), args.join(" "));
+        Command::new("sh")
+            .arg("-c")
+            .arg(line)
+            .output()
+            .expect("sh runs")
+    };
+    let machine = machine.to_string_lossy();
+    let closed_in = run(&["check", "-c", &machine, "-"], "<&-");
+    assert_eq!(closed_in.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&closed_in.stderr).contains("standard input: it is closed"));
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let input = scratch.path().join("print.gcode");
+    std::fs::write(&input, "G28\nG1 X10 Y10 F3000\n").expect("write input");
+    let closed_out = run(&["run", "-c", &machine, &input.to_string_lossy()], ">&-");
+    assert_eq!(closed_out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&closed_out.stderr).contains("standard output: it is closed"));
+}

@@ -120,3 +120,88 @@ fn scara_pattern_on_a_polar_printer_names_what_it_needs() {
             .exists()
     );
 }
+
+/// A text field of a pattern buffer (NUL-terminated).
+fn buffer_text(buffer: &[u8]) -> String {
+    let end = buffer.iter().position(|&b| b == 0).unwrap_or(buffer.len());
+    String::from_utf8_lossy(&buffer[..end]).into_owned()
+}
+
+/// `JOINTSPACE_SCARA_PATTERN`'s library call and `jointspace calibrate scara-pattern` make the same pattern of one
+/// printer.cfg (one pattern maker), and the plug-in's own inverse puts the motors at the listed angles at every cross
+/// centre the G-code writes.
+#[test]
+fn the_printer_and_the_command_line_make_one_pattern() {
+    use jointspace_klipper::{jointspace_inverse, jointspace_scara_pattern, machine::Machine};
+    let config = workspace_root().join("klipper/examples/scara.cfg");
+    let machine = Machine::from_config_file(&config, false).expect("the example machine");
+    let (mut gcode, mut template) = (vec![0u8; 1 << 18], vec![0u8; 1 << 16]);
+    // SAFETY: the buffers hold the lengths given; the machine outlives the call.
+    let count = unsafe {
+        jointspace_scara_pattern(
+            &machine,
+            20,
+            6.0,
+            gcode.as_mut_ptr().cast(),
+            gcode.len(),
+            template.as_mut_ptr().cast(),
+            template.len(),
+        )
+    };
+    assert_eq!(count, 20);
+    let (gcode, template) = (buffer_text(&gcode), buffer_text(&template));
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (cli_gcode, cli_template) = (dir.path().join("p.gcode"), dir.path().join("p.csv"));
+    run_jointspace([
+        OsStr::new("calibrate"),
+        OsStr::new("scara-pattern"),
+        OsStr::new("-c"),
+        config.as_os_str(),
+        OsStr::new("-o"),
+        cli_gcode.as_os_str(),
+        OsStr::new("--template"),
+        cli_template.as_os_str(),
+    ]);
+    assert_eq!(std::fs::read_to_string(&cli_gcode).expect("G-code"), gcode);
+    assert_eq!(
+        std::fs::read_to_string(&cli_template).expect("template"),
+        template
+    );
+    // Each cross centre (X of its vertical stroke, Y of its horizontal one) through the plug-in's inverse.
+    let field = |line: &str, key: char| -> f64 {
+        line.split_whitespace()
+            .find_map(|w| w.strip_prefix(key))
+            .and_then(|v| v.parse().ok())
+            .expect("a coordinate")
+    };
+    let prints: Vec<&str> = gcode.lines().filter(|l| l.starts_with("G1 X")).collect();
+    let rows: Vec<[f64; 2]> = template
+        .lines()
+        .filter_map(|l| {
+            let mut cells = l.split(',');
+            Some([cells.next()?.parse().ok()?, cells.next()?.parse().ok()?])
+        })
+        .collect();
+    assert_eq!(rows.len(), 20);
+    for (stroke, [a_deg, b_deg]) in prints.chunks(2).zip(rows) {
+        let centre = [field(stroke[1], 'X'), field(stroke[0], 'Y'), 0.3];
+        let mut motors = [0.0; 3];
+        // SAFETY: three doubles in, three motors out, no previous, no error buffer.
+        let status = unsafe {
+            jointspace_inverse(
+                &machine,
+                centre.as_ptr(),
+                std::ptr::null(),
+                motors.as_mut_ptr(),
+                std::ptr::null_mut(),
+                0,
+            )
+        };
+        assert_eq!(status, 0);
+        assert!(
+            (motors[0] - a_deg.to_radians()).abs() < 1e-9
+                && (motors[1] - b_deg.to_radians()).abs() < 1e-9,
+            "{centre:?}: {motors:?} vs {a_deg}°, {b_deg}°"
+        );
+    }
+}

@@ -335,6 +335,10 @@ enum Solver {
 struct AsGeneral(Box<dyn Kinematics>);
 
 impl Kinematics for AsGeneral {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
     fn name(&self) -> &'static str {
         self.0.name()
     }

@@ -1,7 +1,8 @@
 //! SCARA geometry identification: a parametric forward model with its analytic Jacobian, a Levenberg–Marquardt
 //! fit of `L1, L2, offset_x, offset_y, shoulder_zero, elbow_zero, coupling` to measured nozzle XY at commanded
-//! motor angles, identifiability analysis (scaled-Jacobian singular values), greedy D-optimal pose selection,
-//! the measurement CSV reader and the G-code of a printable calibration pattern.
+//! motor angles, identifiability analysis (scaled-Jacobian singular values), greedy D-optimal pose selection;
+//! the measurements file (`measurements`), the printed pattern built through the machine's own kinematics
+//! (`pattern`) and the fit's verdict against the stated measurement noise (`verdict`).
 //!
 //! Model (standard frame, angles from +X counter-clockwise, as `kinematics::ScaraParams`):
 //! `q1 = a − shoulder_zero`, `q2 = b − elbow_zero − c·q1`,
@@ -10,18 +11,33 @@
 //!
 //! Gauge: the measurement frame is the bed frame. Its origin fixes the offsets and its orientation fixes the
 //! base rotation, which is therefore not a separate parameter: a rotated base shows up as `shoulder_zero`
-//! (the two are not separable, REFERENCE §4). Measurements must be taken in the standard frame; data in
-//! the X-SCARA frame (`kinematics::ScaraFrame::XScara`, the standard frame with x and y swapped) is used by
-//! swapping the `x_mm` and `y_mm` columns (and swapping the fitted offsets back).
+//! (the two are not separable, REFERENCE §4). The X-SCARA frame (`kinematics::ScaraFrame::XScara`) is the standard
+//! frame with x and y swapped: [`identify_in_frame`] fits such data with x and y exchanged and gives the offsets
+//! (and their uncertainty) back in the printer's X and Y.
 //!
 //! Identifiability in practice: a fixed shoulder leaves `L1`, the offsets, `shoulder_zero` and the coupling
 //! mixed (3 null combinations); a fixed elbow joint makes the arm rigid (2 null combinations); a fixed elbow
 //! *motor* is identifiable but poorly conditioned.
 
+mod measurements;
+mod pattern;
+mod verdict;
+
+pub use measurements::{
+    CSV_HEADER, MeasurementFile, frame_name, measurement_template, parse_measurement_file,
+    parse_measurements,
+};
+pub use pattern::{
+    DEFAULT_POSES, MIN_POSES, Pattern, PatternError, PatternOptions, machine_pattern,
+};
+pub use verdict::{
+    FALSE_ALARM, MIN_RESIDUAL_DOF, MeasuringMethod, PoseResidual, Verdict, chi_square_limit, judge,
+};
+
+use kinematics::ScaraFrame;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use serde::{Deserialize, Serialize};
-use std::fmt::Write as _;
 
 /// Parameter names in vector order.
 pub const PARAM_NAMES: [&str; 7] = [
@@ -173,32 +189,6 @@ pub enum ScaraError {
     NoConvergence(String),
     #[error("non-finite value in measurement {index}")]
     NonFinite { index: usize },
-}
-
-/// The CSV header this reader expects (angles in degrees, positions in mm).
-pub const CSV_HEADER: [&str; 4] = ["motor_a_deg", "motor_b_deg", "x_mm", "y_mm"];
-
-/// Parse measurements: `#` starts a comment (whole line or trailing), blank lines are skipped, the first
-/// remaining line is the header `motor_a_deg,motor_b_deg,x_mm,y_mm`, then one pose per line.
-/// Errors carry `file:line:column` of the offending field.
-pub fn parse_measurements(text: &str, file: &str) -> Result<Vec<Measurement>, ScaraError> {
-    let located = |e: crate::csv::CsvError| ScaraError::Parse {
-        file: file.to_string(),
-        line: e.line,
-        column: e.column,
-        message: e.message,
-    };
-    let mut out = Vec::new();
-    for row in crate::csv::data_rows(text, &CSV_HEADER).map_err(located)? {
-        out.push(Measurement {
-            motor_a: row.number(0).map_err(located)?.to_radians(),
-            motor_b: row.number(1).map_err(located)?.to_radians(),
-            x: row.number(2).map_err(located)?,
-            y: row.number(3).map_err(located)?,
-            line: row.line,
-        });
-    }
-    Ok(out)
 }
 
 /// How well a pose set determines the parameters.
@@ -431,6 +421,56 @@ pub fn identify(data: &[Measurement], start: &ScaraGeometry) -> Result<Identific
     })
 }
 
+/// [`identify`] for measurements in the printer's X and Y on a machine of `frame`, from `start` in the same terms:
+/// X-SCARA data is fitted with x and y exchanged (its arm frame), and the offsets, their covariance, the
+/// residuals and the unidentifiable combinations come back in the printer's X and Y.
+pub fn identify_in_frame(
+    data: &[Measurement],
+    start: &ScaraGeometry,
+    frame: ScaraFrame,
+) -> Result<Identification, ScaraError> {
+    if frame == ScaraFrame::Standard {
+        return identify(data, start);
+    }
+    let swapped: Vec<Measurement> = data
+        .iter()
+        .map(|m| Measurement {
+            x: m.y,
+            y: m.x,
+            ..*m
+        })
+        .collect();
+    let mut fit = identify(&swapped, &swap_offsets(start))?;
+    fit.geometry = swap_offsets(&fit.geometry);
+    fit.sigma.swap(2, 3);
+    fit.covariance.swap(2, 3);
+    for row in &mut fit.covariance {
+        row.swap(2, 3);
+    }
+    for r in &mut fit.residuals {
+        r.swap(0, 1);
+    }
+    for combination in &mut fit.identifiability.unidentifiable {
+        for (name, _) in combination.iter_mut() {
+            *name = match name.as_str() {
+                "offset_x" => "offset_y".to_string(),
+                "offset_y" => "offset_x".to_string(),
+                other => other.to_string(),
+            };
+        }
+    }
+    Ok(fit)
+}
+
+/// The geometry with its offsets exchanged (between the printer's X/Y and the X-SCARA arm frame).
+fn swap_offsets(g: &ScaraGeometry) -> ScaraGeometry {
+    ScaraGeometry {
+        offset_x: g.offset_y,
+        offset_y: g.offset_x,
+        ..*g
+    }
+}
+
 /// Candidate poses on a grid of motor angles (rad), `n_a × n_b` points including the ends.
 pub fn pose_grid(
     a_range: (f64, f64),
@@ -485,165 +525,6 @@ pub fn suggest_poses(
     chosen
 }
 
-/// Options for the printed calibration pattern.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PatternOptions {
-    /// Length of each cross arm, tip to tip (mm).
-    pub cross_size: f64,
-    pub layer_height: f64,
-    /// Filament length per mm of line (mm).
-    pub extrusion_per_mm: f64,
-    pub print_speed: f64,
-    pub travel_speed: f64,
-    /// Motor angles `(a, b)` (rad) where `G28` leaves the arm, if known: the first travel then also turns the
-    /// joints instead of going straight.
-    #[serde(default)]
-    pub home_pose: Option<(f64, f64)>,
-}
-
-impl Default for PatternOptions {
-    fn default() -> Self {
-        Self {
-            cross_size: 6.0,
-            layer_height: 0.3,
-            extrusion_per_mm: 0.04,
-            print_speed: 20.0,
-            travel_speed: 100.0,
-            home_pose: None,
-        }
-    }
-}
-
-/// Fixed-decimal number without `-0.000`.
-fn num(v: f64) -> String {
-    let s = format!("{v:.3}");
-    if s.trim_start_matches('-')
-        .chars()
-        .all(|c| c == '0' || c == '.')
-    {
-        "0.000".to_string()
-    } else {
-        s
-    }
-}
-
-/// G-code of one small cross per pose, centred at the pose's nominal XY. With the nominal configuration the
-/// firmware puts the motors at exactly the listed angles at each cross centre; measure the centres and
-/// fill in `x_mm,y_mm` in the CSV the comments give.
-pub fn calibration_pattern_gcode(
-    g: &ScaraGeometry,
-    poses: &[(f64, f64)],
-    o: &PatternOptions,
-) -> String {
-    let mut s = String::new();
-    let h = 0.5 * o.cross_size;
-    let e = num(o.cross_size * o.extrusion_per_mm);
-    let (fp, ft) = (num(o.print_speed * 60.0), num(o.travel_speed * 60.0));
-    let _ = writeln!(
-        s,
-        "; jointspace SCARA calibration pattern: {} crosses of {} mm",
-        poses.len(),
-        num(o.cross_size)
-    );
-    let _ = writeln!(
-        s,
-        "; measure each cross centre on the bed and record: {}",
-        CSV_HEADER.join(",")
-    );
-    let _ = writeln!(s, "G21\nG90\nM83\nG28\nG1 Z{} F600", num(o.layer_height));
-    // The pose before the first cross is G28's: when it is not known, the first travel goes straight.
-    let mut last = o.home_pose;
-    for (i, &(a, b)) in poses.iter().enumerate() {
-        let [x, y] = g.forward(a, b);
-        let _ = writeln!(
-            s,
-            "; pose {} motor_a_deg={} motor_b_deg={} nominal_x={} nominal_y={}",
-            i + 1,
-            num(a.to_degrees()),
-            num(b.to_degrees()),
-            num(x),
-            num(y)
-        );
-        for [vx, vy] in travel_via(g, last, (a, b)) {
-            let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(vx), num(vy));
-        }
-        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(x - h), num(y));
-        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(x + h), num(y));
-        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(x), num(y - h));
-        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(x), num(y + h));
-        last = Some((a, b));
-    }
-    let _ = writeln!(s, "G1 Z{} F600\nM84", num(o.layer_height + 5.0));
-    s
-}
-
-/// Via points of the travel between two poses, in joint space: the arm turns its motors linearly from one
-/// pose's angles to the other's (at most 5° per step), as a joint move would. Every point is a pose of the same
-/// elbow branch whose distance from the shoulder lies between the two poses' (it depends on q2 alone, which
-/// changes monotonically), so a travel never sweeps through the base or the unreachable centre, nor turns a
-/// joint through angles the grid of poses avoids.
-fn travel_via(g: &ScaraGeometry, from: Option<(f64, f64)>, to: (f64, f64)) -> Vec<[f64; 2]> {
-    let Some(from) = from else {
-        return Vec::new();
-    };
-    let (da, db) = (to.0 - from.0, to.1 - from.1);
-    let steps = (da.abs().max(db.abs()) / 5f64.to_radians()).ceil() as usize;
-    (1..steps)
-        .map(|i| {
-            let f = i as f64 / steps as f64;
-            g.forward(from.0 + da * f, from.1 + db * f)
-        })
-        .collect()
-}
-
-/// A calibration pattern for one machine: the poses, its G-code, and how well the poses determine the geometry.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Pattern {
-    /// Motor angles `(a, b)` (rad) of each cross centre.
-    pub poses: Vec<(f64, f64)>,
-    pub gcode: String,
-    pub condition_number: f64,
-}
-
-/// Chooses `count` well-conditioned poses (greedy D-optimal) among a grid of motor angles, keeping only those
-/// `admissible` accepts (motor angles, nominal cross centre: the caller knows the machine's reach and branch), and
-/// writes the pattern of crosses at them.
-pub fn pattern(
-    g: &ScaraGeometry,
-    count: usize,
-    admissible: &dyn Fn((f64, f64), [f64; 2]) -> bool,
-    options: &PatternOptions,
-) -> Pattern {
-    let span = (-150f64.to_radians(), 150f64.to_radians());
-    let candidates: Vec<(f64, f64)> = pose_grid(span, span, 25, 25)
-        .into_iter()
-        .filter(|&pose| admissible(pose, g.forward(pose.0, pose.1)))
-        .collect();
-    let mut poses = suggest_poses(g, &[], &candidates, count);
-    // One sweep of the shoulder: short joint-space travels.
-    poses.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
-    Pattern {
-        gcode: calibration_pattern_gcode(g, &poses, options),
-        condition_number: analyse_poses(g, &poses).condition_number,
-        poses,
-    }
-}
-
-/// The measurements file to fill in: one row per pose with its motor angles, `x_mm` and `y_mm` left to the
-/// person measuring the printed crosses.
-pub fn measurement_template(poses: &[(f64, f64)]) -> String {
-    let mut s = String::from(
-        "# jointspace SCARA calibration: measure each printed cross's centre on the bed (mm, the printer's X/Y\n\
-         # frame) and fill in x_mm and y_mm; then run: jointspace calibrate scara --measurements THIS_FILE\n",
-    );
-    s += &CSV_HEADER.join(",");
-    s.push('\n');
-    for &(a, b) in poses {
-        let _ = writeln!(s, "{},{},,", num(a.to_degrees()), num(b.to_degrees()));
-    }
-    s
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -657,41 +538,6 @@ mod tests {
         let a = 90f64.to_radians();
         let p = g.forward(a, a + a / 3.0);
         assert!((p[0] + 100.0).abs() < 1e-9 && (p[1] - 100.0).abs() < 1e-9);
-    }
-
-    #[test]
-    fn csv_parse_and_errors() {
-        let text =
-            "# poses\nmotor_a_deg, motor_b_deg, x_mm, y_mm\n10,20,1.5,2.5 # ok\n\n30,40,3,4\n";
-        let m = parse_measurements(text, "p.csv").expect("parse");
-        assert_eq!(m.len(), 2);
-        assert!((m[0].motor_a - 10f64.to_radians()).abs() < 1e-15 && m[1].line == 5);
-        let bad = "motor_a_deg,motor_b_deg,x_mm,y_mm\n1,2,abc,4\n";
-        assert_eq!(
-            parse_measurements(bad, "p.csv"),
-            Err(ScaraError::Parse {
-                file: "p.csv".into(),
-                line: 2,
-                column: 5,
-                message: "`abc` is not a finite number".into()
-            })
-        );
-        assert!(matches!(
-            parse_measurements("a,b,c,d\n", "p.csv"),
-            Err(ScaraError::Parse {
-                line: 1,
-                column: 1,
-                ..
-            })
-        ));
-        assert!(matches!(
-            parse_measurements("motor_a_deg,motor_b_deg,x_mm\n", "p.csv"),
-            Err(ScaraError::Parse { .. })
-        ));
-        assert!(matches!(
-            parse_measurements("# nothing\n", "p.csv"),
-            Err(ScaraError::Parse { .. })
-        ));
     }
 
     #[test]
@@ -726,11 +572,5 @@ mod tests {
             levenberg_marquardt::differentiate_numerically(&mut problem).expect("numeric");
         let analytic = problem.jacobian().expect("analytic");
         assert!((numeric - analytic).amax() < 1e-5);
-    }
-
-    #[test]
-    fn number_format_has_no_negative_zero() {
-        assert_eq!(num(-0.0001), "0.000");
-        assert_eq!(num(-1.25), "-1.250");
     }
 }

@@ -1,0 +1,374 @@
+//! The SCARA calibration pattern: one small cross per pose, every pose built through the configured machine's own
+//! inverse kinematics (its elbow branch, frame, offsets, coupling, zeros, joint and motor limits, base radius and
+//! singular band), so the motor angles it lists are the angles that machine commands at each cross centre as
+//! written in the G-code. The CLI (`calibrate scara-pattern`) and the printer (`JOINTSPACE_SCARA_PATTERN`) both
+//! call [`machine_pattern`].
+//!
+//! Candidates lie on rings about the shoulder (every 5° of direction); a candidate is kept only where the machine
+//! accepts the whole cross and a millimetre around it (`check_segment` of each stroke at the first layer's height).
+//! Among them a greedy D-optimal design picks the poses (the identification's Jacobian at the nominal geometry);
+//! no cross or travel crosses the shoulder's branch cut (q1 = ±π, where the printer's solvers refuse a move);
+//! the crosses are printed in shoulder order, travels between them turning the joints (via points every few degrees
+//! of motor angle, each travel segment checked by the machine and cut finer where it refuses one).
+
+use std::f64::consts::{PI, TAU};
+use std::fmt::Write as _;
+
+use kinematics::scara::Scara;
+use kinematics::{Kinematics, ScaraFrame, Vec3};
+use serde::{Deserialize, Serialize};
+
+use super::measurements::{CSV_HEADER, degrees, frame_name, measurement_template};
+use super::{ScaraGeometry, analyse_poses, suggest_poses};
+
+/// Rings of candidate cross centres between the innermost and outermost distance the links allow.
+const RINGS: usize = 24;
+/// Directions of candidate cross centres about the shoulder.
+const DIRECTIONS: usize = 72;
+/// What the machine must accept beyond each stroke's end (mm): an arm built a little differently from its config
+/// still prints the whole cross.
+const CROSS_MARGIN: f64 = 1.0;
+/// Crosses in a pattern unless asked otherwise.
+pub const DEFAULT_POSES: usize = 20;
+/// Fewest poses a pattern may have: 7 parameters need 4 poses (8 equations).
+pub const MIN_POSES: usize = 4;
+/// The joint-space steps tried for a travel (degrees of the motor that turns most), coarse first.
+const TRAVEL_STEPS_DEG: [f64; 5] = [5.0, 2.0, 1.0, 0.5, 0.2];
+
+/// Options for the printed calibration pattern.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PatternOptions {
+    /// Length of each cross arm, tip to tip (mm).
+    pub cross_size: f64,
+    pub layer_height: f64,
+    /// Filament length per mm of line (mm).
+    pub extrusion_per_mm: f64,
+    pub print_speed: f64,
+    pub travel_speed: f64,
+    /// Where `G28` leaves the nozzle (bed X, Y, Z), if known: the first travel then turns the joints from there
+    /// instead of going straight.
+    #[serde(default)]
+    pub home: Option<Vec3>,
+}
+
+impl Default for PatternOptions {
+    fn default() -> Self {
+        Self {
+            cross_size: 6.0,
+            layer_height: 0.3,
+            extrusion_per_mm: 0.04,
+            print_speed: 20.0,
+            travel_speed: 100.0,
+            home: None,
+        }
+    }
+}
+
+/// A calibration pattern for one machine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pattern {
+    /// Motor angles `(stepper_a, stepper_b)` (rad) the machine commands at each cross centre.
+    pub poses: Vec<(f64, f64)>,
+    /// Each cross centre as written in the G-code (the printer's X, Y in mm).
+    pub centres: Vec<[f64; 2]>,
+    /// The frame the angles count in (the machine's).
+    pub frame: ScaraFrame,
+    pub gcode: String,
+    /// The measurements file to fill in (see [`measurement_template`]).
+    pub template: String,
+    pub condition_number: f64,
+}
+
+/// Why no pattern could be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PatternError {
+    #[error("{0}")]
+    Options(String),
+    #[error(
+        "only {found} poses of this arm take a whole {cross} mm cross (reach, base radius, singular band, joint and \
+         motor limits); a pattern needs at least {MIN_POSES}"
+    )]
+    TooFewPoses { found: usize, cross: f64 },
+    #[error("no travel the machine accepts from X{} Y{} to the cross at X{} Y{}: {reason}", num(from[0]), num(from[1]), num(to[0]), num(to[1]))]
+    Travel {
+        from: [f64; 2],
+        to: [f64; 2],
+        reason: String,
+    },
+}
+
+/// Fixed-decimal number without `-0.000`.
+fn num(v: f64) -> String {
+    let s = format!("{v:.3}");
+    if s.trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
+        "0.000".to_string()
+    } else {
+        s
+    }
+}
+
+/// `v` as the G-code writes it and the firmware reads it back (3 decimals).
+fn written(v: f64) -> f64 {
+    (v * 1000.0).round() / 1000.0
+}
+
+/// A candidate cross: its centre as written and the motor angles the machine commands there.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    centre: [f64; 2],
+    motors: (f64, f64),
+}
+
+/// The strokes of a cross at `c` of half-size `h` as written: horizontal, the travel between, vertical.
+fn strokes(c: [f64; 2], h: f64, z: f64) -> [(Vec3, Vec3); 3] {
+    let (x0, x1) = (written(c[0] - h), written(c[0] + h));
+    let (y0, y1) = (written(c[1] - h), written(c[1] + h));
+    [
+        ([x0, c[1], z], [x1, c[1], z]),
+        ([x1, c[1], z], [c[0], y0, z]),
+        ([c[0], y0, z], [c[0], y1, z]),
+    ]
+}
+
+/// The candidate at bed point `p` (rounded as written) if the machine takes the whole cross there.
+fn candidate(kin: &Scara, p: [f64; 2], o: &PatternOptions) -> Option<Candidate> {
+    let (c, z, h) = (
+        [written(p[0]), written(p[1])],
+        written(o.layer_height),
+        o.cross_size / 2.0,
+    );
+    let mut motors = [0.0; 3];
+    kin.inverse([c[0], c[1], z], &mut motors).ok()?;
+    kin.check_point([c[0], c[1], z]).ok()?;
+    let wide = strokes(c, h + CROSS_MARGIN, z);
+    let exact = strokes(c, h, z);
+    let accepted = wide
+        .iter()
+        .chain(&exact)
+        .all(|(a, b)| kin.check_segment(*a, *b).is_ok());
+    accepted.then_some(Candidate {
+        centre: c,
+        motors: (motors[0], motors[1]),
+    })
+}
+
+/// Candidate crosses on rings about the shoulder, in the arm's frame turned into the bed's.
+fn candidates(kin: &Scara, o: &PatternOptions) -> Vec<Candidate> {
+    let g = kin.geometry();
+    let (l1, l2) = g.link_lengths();
+    let (lo, hi) = ((l1 - l2).abs(), l1 + l2);
+    let mut out = Vec::new();
+    for ring in 1..RINGS {
+        let rho = lo + (hi - lo) * ring as f64 / RINGS as f64;
+        for k in 0..DIRECTIONS {
+            let theta = -PI + TAU * k as f64 / DIRECTIONS as f64;
+            let (x, y) = g.bed_frame(rho * theta.cos(), rho * theta.sin());
+            out.extend(candidate(kin, [x, y], o));
+        }
+    }
+    out
+}
+
+/// Checks the options a pattern is made with.
+fn check_options(o: &PatternOptions, count: usize) -> Result<(), PatternError> {
+    let positive = [
+        ("cross size", o.cross_size),
+        ("layer height", o.layer_height),
+        ("extrusion per mm", o.extrusion_per_mm),
+        ("print speed", o.print_speed),
+        ("travel speed", o.travel_speed),
+    ];
+    if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+        return Err(PatternError::Options(format!(
+            "the pattern's {name} must be a positive number, not {v}"
+        )));
+    }
+    if count < MIN_POSES {
+        return Err(PatternError::Options(format!(
+            "a pattern needs at least {MIN_POSES} crosses (7 parameters), {count} asked"
+        )));
+    }
+    Ok(())
+}
+
+/// The calibration pattern of `count` crosses for this machine (fewer when fewer poses take a whole cross, but at
+/// least [`MIN_POSES`]).
+pub fn machine_pattern(
+    kin: &Scara,
+    count: usize,
+    o: &PatternOptions,
+) -> Result<Pattern, PatternError> {
+    check_options(o, count)?;
+    let kin = &within_branch_cut(kin)?;
+    let all = candidates(kin, o);
+    if all.len() < MIN_POSES {
+        return Err(PatternError::TooFewPoses {
+            found: all.len(),
+            cross: o.cross_size,
+        });
+    }
+    let nominal = ScaraGeometry::from(kin.params());
+    let motors: Vec<(f64, f64)> = all.iter().map(|c| c.motors).collect();
+    let picked = suggest_poses(&nominal, &[], &motors, count);
+    let mut chosen: Vec<Candidate> = picked
+        .iter()
+        .filter_map(|p| all.iter().find(|c| c.motors == *p).copied())
+        .collect();
+    // One sweep of the shoulder: short joint-space travels.
+    chosen.sort_by(|p, q| {
+        p.motors
+            .0
+            .total_cmp(&q.motors.0)
+            .then(p.motors.1.total_cmp(&q.motors.1))
+    });
+    let poses: Vec<(f64, f64)> = chosen.iter().map(|c| c.motors).collect();
+    let frame = kin.params().frame;
+    Ok(Pattern {
+        gcode: pattern_gcode(kin, &chosen, o)?,
+        template: measurement_template(&poses, frame),
+        condition_number: analyse_poses(&nominal, &poses).condition_number,
+        centres: chosen.iter().map(|c| c.centre).collect(),
+        poses,
+        frame,
+    })
+}
+
+/// The machine with its shoulder joint kept within (−π, π]: the printer's step solvers take q1 there (as the
+/// FEKT-SCARA module does) and refuse a move through q1 = ±π, so no cross or travel crosses it, and the printer and
+/// the command line make the same pattern of one config.
+fn within_branch_cut(kin: &Scara) -> Result<Scara, PatternError> {
+    let mut params = kin.params().clone();
+    params.shoulder_limits = Some(kinematics::scara::within_branch_cut(params.shoulder_limits));
+    Scara::new(params).map_err(|e| PatternError::Options(e.to_string()))
+}
+
+/// The G-code of the crosses in order, with the travels between them.
+fn pattern_gcode(
+    kin: &Scara,
+    crosses: &[Candidate],
+    o: &PatternOptions,
+) -> Result<String, PatternError> {
+    let mut s = String::new();
+    let (h, z) = (o.cross_size / 2.0, written(o.layer_height));
+    let e = num(o.cross_size * o.extrusion_per_mm);
+    let (fp, ft) = (num(o.print_speed * 60.0), num(o.travel_speed * 60.0));
+    let _ = writeln!(
+        s,
+        "; jointspace SCARA calibration pattern: {} crosses of {} mm, frame {}",
+        crosses.len(),
+        num(o.cross_size),
+        frame_name(kin.params().frame)
+    );
+    let _ = writeln!(
+        s,
+        "; at each cross centre (x, y: the printer's X/Y) this machine's inverse kinematics commands the listed motor\n\
+         ; angles; measure each cross centre on the bed and record: {}",
+        CSV_HEADER.join(",")
+    );
+    let _ = writeln!(s, "G21\nG90\nM83\nG28\nG1 Z{} F600", num(z));
+    let mut last = start_of(kin, o.home);
+    for (i, c) in crosses.iter().enumerate() {
+        let [x, y] = c.centre;
+        let _ = writeln!(
+            s,
+            "; pose {} motor_a_deg={} motor_b_deg={} x={} y={}",
+            i + 1,
+            degrees(c.motors.0),
+            degrees(c.motors.1),
+            num(x),
+            num(y)
+        );
+        let [(start, first), (_, second), (_, end)] = strokes(c.centre, h, z);
+        if let Some(from) = last {
+            for [vx, vy] in travel(kin, from, c.motors, start)? {
+                let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(vx), num(vy));
+            }
+        }
+        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(start[0]), num(start[1]));
+        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(first[0]), num(first[1]));
+        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(second[0]), num(second[1]));
+        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(end[0]), num(end[1]));
+        last = Some(Travelling {
+            at: end,
+            motors: c.motors,
+        });
+    }
+    let _ = writeln!(s, "G1 Z{} F600\nM84", num(z + 5.0));
+    Ok(s)
+}
+
+/// Where a travel leaves from: the nozzle (as written, at the layer's height) and the motor angles near it.
+#[derive(Debug, Clone, Copy)]
+struct Travelling {
+    at: Vec3,
+    motors: (f64, f64),
+}
+
+/// The pose `G28` leaves, when known and the machine has motor angles for it.
+fn start_of(kin: &Scara, home: Option<Vec3>) -> Option<Travelling> {
+    let p = home?;
+    let mut motors = [0.0; 3];
+    kin.inverse(p, &mut motors).ok()?;
+    Some(Travelling {
+        at: p,
+        motors: (motors[0], motors[1]),
+    })
+}
+
+/// Via points of the travel to a cross starting at `to` (motor angles `target` at its centre): the motors turned
+/// linearly from one pose's angles to the next's, as a joint move would (on a branch the radius depends on the
+/// elbow joint alone, which changes monotonically, so the travel keeps clear of the base and the singular
+/// circles), each point rounded as written; the coarsest step at which the machine accepts every segment.
+fn travel(
+    kin: &Scara,
+    from: Travelling,
+    target: (f64, f64),
+    to: Vec3,
+) -> Result<Vec<[f64; 2]>, PatternError> {
+    let z = to[2];
+    let (da, db) = (target.0 - from.motors.0, target.1 - from.motors.1);
+    let mut refusal = String::new();
+    for step in TRAVEL_STEPS_DEG {
+        let steps = (da.abs().max(db.abs()) / step.to_radians()).ceil().max(1.0) as usize;
+        let vias: Vec<[f64; 2]> = (1..steps)
+            .filter_map(|i| {
+                let f = i as f64 / steps as f64;
+                let (x, y) = kin
+                    .geometry()
+                    .forward(from.motors.0 + da * f, from.motors.1 + db * f);
+                Some([written(x), written(y)]).filter(|p| p.iter().all(|v| v.is_finite()))
+            })
+            .collect();
+        let mut points = vec![[from.at[0], from.at[1], z]];
+        points.extend(vias.iter().map(|p| [p[0], p[1], z]));
+        points.push(to);
+        match points
+            .windows(2)
+            .map(|w| kin.check_segment(w[0], w[1]))
+            .find_map(Result::err)
+        {
+            None => return Ok(vias),
+            Some(e) => refusal = e.reason.to_string(),
+        }
+    }
+    Err(PatternError::Travel {
+        from: [from.at[0], from.at[1]],
+        to: [to[0], to[1]],
+        reason: refusal,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn number_format_has_no_negative_zero() {
+        assert_eq!(num(-0.0001), "0.000");
+        assert_eq!(num(-1.25), "-1.250");
+        assert_eq!(written(1.23449), 1.234);
+    }
+}

@@ -42,7 +42,7 @@ class JointspaceCommands:
 
     def cmd_JOINTSPACE_SCARA_PATTERN(self, gcmd):
         machine = self._machine(gcmd, "jointspace_scara", "JOINTSPACE_SCARA_PATTERN")
-        poses = gcmd.get_int("POSES", 12, minval=4, maxval=64)
+        poses = gcmd.get_int("POSES", 20, minval=4, maxval=64)
         cross = gcmd.get_float("CROSS", 6., above=1., maxval=30.)
         count, gcode, template = machine.scara_pattern(poses, cross)
         if count < 0:

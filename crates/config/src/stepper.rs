@@ -55,8 +55,8 @@ pub struct StepperConfig {
     pub steps_per_rotation: f64,
     /// Travel per microstep in `units`: `rotation_distance / steps_per_rotation`.
     pub step_distance: f64,
-    /// `position_min`/`position_max` of a rail (default min 0), as written in the file: mm, or for
-    /// rotary rails whatever unit the file uses (the FEKT-SCARA configs write ±200 meaning degrees).
+    /// `position_min`/`position_max` of a rail (default min 0), as written in the file: mm, or degrees for a rotary
+    /// rail (the FEKT-SCARA configs write ±200); [`StepperConfig::params`] gives them in the motor's units.
     pub position_min: Option<f64>,
     pub position_max: Option<f64>,
     pub homing: Option<HomingConfig>,
@@ -70,13 +70,18 @@ impl StepperConfig {
         self.dir_pin.inverted
     }
 
-    /// The parameters the kinematics are built from.
+    /// The parameters the kinematics are built from, in the motor's units: a rotary rail's range is written in
+    /// degrees (as its `position_endstop`) and the kinematics count radians.
     pub fn params(&self) -> StepperParams {
+        let unit = |v: f64| match self.units {
+            StepperUnits::Radians => v.to_radians(),
+            StepperUnits::Millimetres => v,
+        };
         StepperParams {
             name: self.name.clone(),
             step_distance: self.step_distance,
-            position_min: self.position_min,
-            position_max: self.position_max,
+            position_min: self.position_min.map(unit),
+            position_max: self.position_max.map(unit),
         }
     }
 }

@@ -59,9 +59,15 @@ fn fekt_scara_example_loads() {
     // 60:20 pulleys: 200 · 16 · 3 = 9600 steps per joint turn.
     assert_eq!(scara.shoulder_stepper.step_distance, TAU / 9600.0);
     assert_eq!(scara.elbow_stepper.step_distance, TAU / 9600.0);
-    // The fork's ±200 range (degrees in that fork) is kept as written.
-    assert_eq!(scara.shoulder_stepper.position_min, Some(-200.0));
-    assert_eq!(scara.shoulder_stepper.position_max, Some(200.0));
+    // The fork's ±200 range is in degrees, as its `position_endstop`; the kinematics count radians.
+    assert_eq!(
+        scara.shoulder_stepper.position_min,
+        Some((-200.0f64).to_radians())
+    );
+    assert_eq!(
+        scara.shoulder_stepper.position_max,
+        Some(200.0f64.to_radians())
+    );
     let a = machine.stepper("stepper_a").expect("stepper_a");
     assert!(a.dir_inverted());
     assert_eq!(a.homing.as_ref().map(|h| h.positive_dir), Some(false));

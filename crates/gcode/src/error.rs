@@ -52,6 +52,8 @@ pub enum ErrorKind {
     ArcMissingCentre,
     #[error("arc radius is zero")]
     ArcZeroRadius,
+    #[error("G2/G3 does not support R moves (as Klipper: give the centre with I and J)")]
+    ArcRadiusUnsupported,
     #[error(
         "R arc that ends where it starts: its centre is undefined (give I/J for a full circle)"
     )]

@@ -62,7 +62,9 @@ pub(crate) fn start<'a, R: BufRead, S: MoveSink>(
 ) -> (Commands<R>, Planner<'a, S>) {
     let toolhead = Toolhead::new(setup.planner.clone(), setup.kinematics.as_ref(), sink);
     let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
-    let mut commands = Commands::from_reader(input, source_name);
+    // Read as Klipper reads it: the job is planned as Klipper plans it.
+    let reader = gcode::Reader::new(input, source_name);
+    let mut commands = Commands::new(reader, gcode::InterpreterOptions::klipper());
     if let Some(home) = setup.home_position {
         planner.start_at(home);
         let mut position = commands.interpreter().last_position();

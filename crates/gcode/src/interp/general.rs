@@ -283,6 +283,9 @@ impl Interpreter {
             }
             offset
         } else if let Some(r_word) = line.word(b'R') {
+            if !self.radius_arcs {
+                return Err(Box::new((r_word.span, ErrorKind::ArcRadiusUnsupported)));
+            }
             let radius = required(r_word)? * self.unit;
             centre_offset_from_radius(&start, &target, radius, clockwise)
                 .map_err(|kind| Box::new((extent, kind)))?

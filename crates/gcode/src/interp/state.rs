@@ -15,6 +15,9 @@ pub struct InterpreterOptions {
     pub initial_speed: f64,
     /// Machine position at start.
     pub initial_position: Position,
+    /// Arcs given by their radius (`G2 … R`), as Marlin and RepRapFirmware read them. Klipper refuses them ("G2/G3
+    /// does not support R moves"), so a job planned as Klipper plans refuses them too.
+    pub radius_arcs: bool,
 }
 
 impl Default for InterpreterOptions {
@@ -22,6 +25,17 @@ impl Default for InterpreterOptions {
         InterpreterOptions {
             initial_speed: 25.0,
             initial_position: [0.0; 4],
+            radius_arcs: true,
+        }
+    }
+}
+
+impl InterpreterOptions {
+    /// As Klipper's `gcode_move` and `gcode_arcs` read G-code.
+    pub fn klipper() -> Self {
+        InterpreterOptions {
+            radius_arcs: false,
+            ..InterpreterOptions::default()
         }
     }
 }
@@ -56,6 +70,8 @@ pub struct Interpreter {
     /// A layer start seen whose Z has not arrived yet.
     pub(super) pending_layer: Option<Span>,
     pub(super) warnings: Warnings,
+    /// See [`InterpreterOptions::radius_arcs`].
+    pub(super) radius_arcs: bool,
 }
 
 impl Default for Interpreter {
@@ -79,6 +95,7 @@ impl Interpreter {
             queue: VecDeque::new(),
             pending_layer: None,
             warnings: Warnings::default(),
+            radius_arcs: options.radius_arcs,
         }
     }
 

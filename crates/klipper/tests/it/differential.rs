@@ -166,3 +166,36 @@ fn refusals_agree_with_the_host() {
         );
     }
 }
+
+/// An arc given by its radius: Klipper refuses it ("G2/G3 does not support R moves"), and `check` refuses the same
+/// line, where jointspace's reader would otherwise take it as Marlin does.
+#[test]
+fn radius_arcs_are_refused_as_klipper_refuses_them() {
+    let Some(hosts) = Hosts::get("radius_arcs_are_refused_as_klipper_refuses_them") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    // The example has `[gcode_arcs]`: Klipper reads arcs, and refuses this one for its R.
+    let cfg = example(dir.path(), "polar");
+    let gcode = "G28\nG1 X50 Y10 F3000\nG2 X60 Y20 R10 F3000\nG1 X40 Y10\n";
+    let input = write(dir.path(), "radius.gcode", gcode);
+    let check = cli_json(&[
+        "check",
+        "-c",
+        &cfg.to_string_lossy(),
+        &input.to_string_lossy(),
+        "--json",
+    ]);
+    let problems = check["problems"].as_array().expect("problems");
+    let error = problems
+        .iter()
+        .find(|p| p["severity"] == "error")
+        .expect("a refusal");
+    assert_eq!(error["line"].as_u64(), Some(3), "{error}");
+    let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join("out"));
+    assert!(
+        run.log.contains("G2/G3 does not support R moves"),
+        "{}",
+        tail(&run.log, 10)
+    );
+}

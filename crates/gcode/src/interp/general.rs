@@ -164,9 +164,13 @@ impl Interpreter {
             28 => {
                 self.check_letters(line, bit(b'X') | bit(b'Y') | bit(b'Z'));
                 let named = |l| line.word(l).is_some();
-                Command::Home {
-                    axes: [named(b'X'), named(b'Y'), named(b'Z')],
+                let axes = [named(b'X'), named(b'Y'), named(b'Z')];
+                // Klipper: a homed axis's G-code offset is its SET_GCODE_OFFSET again (a G92 offset is dropped).
+                let all = axes == [false; 3];
+                for axis in (0..3).filter(|&a| all || axes[a]) {
+                    self.base[axis] = self.homing[axis];
                 }
+                Command::Home { axes }
             }
             90 | 91 => {
                 self.absolute_coord = major == 90;
@@ -405,6 +409,8 @@ impl Interpreter {
                 }
             }
             Command::SetKinematicPosition { position }
+        } else if is("SET_GCODE_OFFSET") {
+            self.set_gcode_offset(line)?
         } else if is("EXCLUDE_OBJECT_START") || is("EXCLUDE_OBJECT_END") {
             let object = line
                 .ext_param("NAME")
@@ -419,6 +425,45 @@ impl Interpreter {
             other(line)
         };
         Ok(Some(command))
+    }
+
+    /// `SET_GCODE_OFFSET` as Klipper's `gcode_move` applies it: each axis's offset (`X=`, or `X_ADJUST=` added to the
+    /// current one) shifts the G-code frame by its change (G28 later restores it, not a G92 offset); with `MOVE=1`
+    /// the toolhead moves by that change too, at `MOVE_SPEED` (mm/s) or the current speed.
+    fn set_gcode_offset(&mut self, line: &Line<'_>) -> Result<Command, Fail> {
+        let mut delta = [0.0; 4];
+        for (axis, name) in ["X", "Y", "Z", "E"].into_iter().enumerate() {
+            let offset = match ext_number(line, name)? {
+                Some(offset) => offset,
+                None => match ext_number(line, &format!("{name}_ADJUST"))? {
+                    Some(adjust) => adjust + self.homing[axis],
+                    None => continue,
+                },
+            };
+            delta[axis] = offset - self.homing[axis];
+            self.homing[axis] = offset;
+            self.base[axis] += delta[axis];
+        }
+        if !ext_number(line, "MOVE")?.is_some_and(|m| m != 0.0) {
+            return Ok(other(line));
+        }
+        let feed = match ext_number(line, "MOVE_SPEED")? {
+            None => self.speed,
+            Some(speed) if speed > 0.0 => speed,
+            Some(_) => return Err(invalid_ext(line, "MOVE_SPEED")),
+        };
+        let mut target = self.last;
+        for (t, d) in target.iter_mut().zip(delta) {
+            *t += d;
+        }
+        self.last = target;
+        let named = delta.map(|d| d != 0.0);
+        Ok(Command::Move(Move {
+            target,
+            named,
+            feed,
+            rapid: false,
+        }))
     }
 
     /// Warns about letters outside `allowed` and about repeated letters.
@@ -506,6 +551,14 @@ fn turns(word: &Word) -> Result<u32, Fail> {
 }
 
 /// A numeric extended parameter (`ACCEL=3000`); must be finite.
+/// An extended parameter's value refused.
+fn invalid_ext(line: &Line<'_>, key: &str) -> Fail {
+    let span = line
+        .ext_param(key)
+        .map_or_else(|| line.command_extent(), |p| p.span);
+    Box::new((span, ErrorKind::InvalidParameter(key.to_owned())))
+}
+
 fn ext_number(line: &Line<'_>, key: &str) -> Result<Option<f64>, Fail> {
     let Some(param) = line.ext_param(key) else {
         return Ok(None);

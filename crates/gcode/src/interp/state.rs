@@ -72,6 +72,8 @@ pub struct Interpreter {
     pub(super) warnings: Warnings,
     /// See [`InterpreterOptions::radius_arcs`].
     pub(super) radius_arcs: bool,
+    /// The G-code offsets `SET_GCODE_OFFSET` set (Klipper's `homing_position`): what G28 restores.
+    pub(super) homing: Position,
 }
 
 impl Default for Interpreter {
@@ -96,6 +98,7 @@ impl Interpreter {
             pending_layer: None,
             warnings: Warnings::default(),
             radius_arcs: options.radius_arcs,
+            homing: [0.0; 4],
         }
     }
 

@@ -436,3 +436,21 @@ fn unknown_parameters_warn() {
         ]
     );
 }
+
+/// Klipper's `gcode_move`: `SET_GCODE_OFFSET` shifts the frame by the change of the offset (`_ADJUST` adds to it),
+/// `MOVE=1` moves by that change, and `G28` restores the offsets `SET_GCODE_OFFSET` set, dropping a `G92` one.
+#[test]
+fn gcode_offsets_as_klipper_applies_them() {
+    let (commands, interp) = run("G1 X10 Y10 Z1 F600\nSET_GCODE_OFFSET Z=0.2\nG1 X20 Z1\n\
+         SET_GCODE_OFFSET Z_ADJUST=-0.05\nG1 Z1\nSET_GCODE_OFFSET X=1 MOVE=1 MOVE_SPEED=5\n");
+    let m = moves(&commands);
+    assert_eq!(m[1].target[2], 1.2);
+    assert!((m[2].target[2] - 1.15).abs() < 1e-12);
+    // MOVE=1: the toolhead moves by the change (+1 in X) at 5 mm/s, the frame keeps the point.
+    assert_eq!((m[3].target[0], m[3].feed), (21.0, 5.0));
+    assert_eq!(interp.gcode_position()[0], 20.0);
+    let (commands, interp) = run("G92 X5\nSET_GCODE_OFFSET Y=2\nG28\nG1 X0 Y0 F600\n");
+    let m = moves(&commands);
+    assert_eq!((m[0].target[0], m[0].target[1]), (0.0, 2.0));
+    assert_eq!(interp.base_position()[..2], [0.0, 2.0]);
+}

@@ -199,3 +199,36 @@ fn radius_arcs_are_refused_as_klipper_refuses_them() {
         tail(&run.log, 10)
     );
 }
+
+/// `SET_GCODE_OFFSET` shifts the G-code frame in Klipper; `check` applies it too, so a move the offset carries out
+/// of reach is refused at the same line by both (and `G28` restores the offset, not a `G92` one).
+#[test]
+fn gcode_offsets_are_applied_as_klipper_applies_them() {
+    let Some(hosts) = Hosts::get("gcode_offsets_are_applied_as_klipper_applies_them") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cfg = example(dir.path(), "polar");
+    // The arm reaches 300 mm: with the offset, X20 is at 280 mm and X50 at 310 mm.
+    let gcode = "G28\nG1 X50 Y10 F3000\nSET_GCODE_OFFSET X=260\nG1 X20 Y10\nG1 X50 Y10\n";
+    let input = write(dir.path(), "offset.gcode", gcode);
+    let check = cli_json(&[
+        "check",
+        "-c",
+        &cfg.to_string_lossy(),
+        &input.to_string_lossy(),
+        "--json",
+    ]);
+    let problems = check["problems"].as_array().expect("problems");
+    let error = problems
+        .iter()
+        .find(|p| p["severity"] == "error")
+        .expect("a refusal");
+    assert_eq!(error["line"].as_u64(), Some(5), "{error}");
+    let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join("out"));
+    assert!(
+        run.log.contains("Move out of range: X310.000 Y10.000"),
+        "{}",
+        tail(&run.log, 10)
+    );
+}

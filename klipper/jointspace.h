@@ -6,6 +6,9 @@
  * and moves or points with a non-finite coordinate, or one beyond 1e9 mm, are refused with the value named. */
 #ifndef JOINTSPACE_H
 #define JOINTSPACE_H
+/* The library version this header belongs to (the library refuses to build from a header naming another; the
+ * plug-in refuses a library reporting another, as jointspace_version's "jointspace-klipper X.Y.Z"). */
+#define JOINTSPACE_VERSION "0.1.0"
 #include <stddef.h>
 struct stepper_kinematics;
 struct jointspace_machine;
@@ -13,7 +16,9 @@ struct jointspace_machine;
 const char *jointspace_version(void);
 /* FNV-1a hash of this file's bytes as the library was built from it: jointspace.py refuses another. */
 unsigned long long jointspace_header_hash(void);
-void jointspace_stepper_kinematics_layout(size_t *out);
+/* Klipper's struct stepper_kinematics or struct move ("stepper_kinematics", "move") as the library was built for
+ * it: "size N" (the struct it allocates), then "field offset size" lines; NULL for another name. */
+const char *jointspace_struct_layout(const char *name);
 
 struct jointspace_machine *jointspace_machine_new(const char *config_text, int fused_arithmetic,
                                                   char *error, size_t error_len);

@@ -6,13 +6,15 @@
 # version. See LICENSE in this folder.
 #
 # The library is loaded into the host's own cffi instance (its stepper_kinematics pointers are then the ones the
-# host's stepper code accepts), after three checks: it was built from this folder's jointspace.h, for the host's
-# struct stepper_kinematics, and the host's arithmetic (plain or fused multiply-add) is learned so that step times
-# agree to the bit. `Machine` is the machine the library builds from printer.cfg and every question asked of it;
+# host's stepper code accepts), after these checks: it is this plug-in's version, built from this folder's
+# jointspace.h, and its layout of struct stepper_kinematics and struct move is the one the running host's own
+# klippy/chelper headers declare; then the host's arithmetic (plain or fused multiply-add) is learned so that step
+# times agree to the bit. `Machine` is the machine the library builds from printer.cfg and every question asked of it;
 # nothing else in the plug-in calls the library's machine functions.
 import logging
 import math
 import os
+import re
 
 if __name__.startswith("klippy."):
     from klippy import chelper
@@ -35,21 +37,32 @@ def _cdef_text():
         return "".join(l for l in f if not l.lstrip().startswith("#"))
 
 
+def _packaged_library():
+    # The library built with this plug-in (beside it, or in its checkout's target/release), or None.
+    for path in (os.path.join(HERE, LIBRARY_NAME), os.path.join(HERE, "..", "target", "release", LIBRARY_NAME)):
+        if os.path.isfile(path):
+            return os.path.realpath(path)
+    return None
+
+
 def _library_path(config):
-    # A path the owner gave must exist: silently loading another library would hide a mistake.
+    # A path the owner gave must exist: silently loading another library would hide a mistake. printer.cfg is
+    # trusted as Klipper's code is (the library runs inside Klipper); the checks after loading catch a wrong build.
     given = [("[jointspace] library", config.get("library", None)
               if config.get_name() == "jointspace" else None),
              ("the environment variable JOINTSPACE_LIBRARY", os.environ.get("JOINTSPACE_LIBRARY"))]
+    packaged = _packaged_library()
     for where, path in given:
         if path:
             if not os.path.isfile(path):
                 raise config.error(
                     "jointspace: %s names %s, which does not exist (build it with klipper/install.sh, "
                     "or remove the setting to use the library this plug-in was installed with)" % (where, path))
+            if packaged and os.path.realpath(path) != packaged:
+                logging.info("jointspace: %s names %s instead of the plug-in's own %s", where, path, packaged)
             return os.path.realpath(path)
-    for path in (os.path.join(HERE, LIBRARY_NAME), os.path.join(HERE, "..", "target", "release", LIBRARY_NAME)):
-        if os.path.isfile(path):
-            return os.path.realpath(path)
+    if packaged:
+        return packaged
     raise config.error(
         "jointspace: %s not found (run klipper/install.sh, or set "
         "[jointspace] library: /path/to/%s)" % (LIBRARY_NAME, LIBRARY_NAME))
@@ -65,6 +78,34 @@ def _header_hash():
     return value
 
 
+def _open(config, ffi, path):
+    # A file the loader cannot open (not a shared library, another platform's) is the owner's to fix: a config error.
+    try:
+        return ffi.dlopen(path)
+    except OSError as e:
+        raise config.error("jointspace: cannot load %s as a library: %s" % (path, e))
+
+
+def _header_version():
+    # The version the header belongs to (its JOINTSPACE_VERSION line; the library refuses to build otherwise).
+    with open(os.path.join(HERE, "jointspace.h")) as f:
+        match = re.search(r'^#define JOINTSPACE_VERSION "([^"]*)"', f.read(), re.M)
+    return match.group(1) if match else "?"
+
+
+def _check_version(config, ffi, lib, path):
+    # First, as the plainest reason: a library of another release (or not ours at all) is refused by name.
+    try:
+        theirs = ffi.string(lib.jointspace_version()).decode(errors="replace")
+    except AttributeError:
+        theirs = "no jointspace version"
+    ours = "jointspace-klipper " + _header_version()
+    if theirs != ours:
+        raise config.error(
+            "jointspace: %s is %s, this plug-in is %s: rebuild the library from this checkout "
+            "(klipper/install.sh) and restart" % (path, theirs, ours))
+
+
 def _check_built_from_this_header(config, lib, path):
     try:
         theirs = lib.jointspace_header_hash()
@@ -76,44 +117,143 @@ def _check_built_from_this_header(config, lib, path):
             "(klipper/install.sh, or cargo build --release -p klipper) and restart" % (path,))
 
 
-def _stepper_kinematics_layout(ffi):
-    # Klipper's struct stepper_kinematics (itersolve.h, the same in the three hosts; the tests compile against
-    # each host's header) as laid out on this platform: catches a library built for another ABI.
-    # It also gives the probe of the host's arithmetic the offset of calc_position_cb.
-    ffi.cdef("""
-        struct jointspace_layout_probe {
-            double step_dist, commanded_pos; void *sc;
-            double last_flush_time, last_move_time; void *tq; int active_flags;
-            double gen_steps_pre_active, gen_steps_post_active;
-            void *calc_position_cb; void *post_cb;
-        };""")
-    t = "struct jointspace_layout_probe"
-    return [ffi.sizeof(t), ffi.offsetof(t, "commanded_pos"),
-            ffi.offsetof(t, "active_flags"), ffi.offsetof(t, "calc_position_cb"),
-            ffi.offsetof(t, "post_cb")]
+# Klipper's headers that declare the structs the library shares with the host (list.h: struct move's list node).
+HOST_HEADERS = ("list.h", "itersolve.h", "trapq.h")
+# The library reads or writes these; its layout of each must be the host's.
+SHARED_STRUCTS = (("stepper_kinematics", "itersolve.h"), ("move", "trapq.h"))
+# The host's declarations are handed to its cffi renamed, beside (never instead of) its own opaque ones.
+HOST_PREFIX = "jointspace_host_"
 
 
-def _check_layout(config, ffi, lib, path):
-    ours = ffi.new("size_t[5]")
-    lib.jointspace_stepper_kinematics_layout(ours)
-    theirs = _stepper_kinematics_layout(ffi)
-    if list(ours) != theirs:
+def _c_items(text):
+    """The top-level declarations of C header text, each ending in ';' (comments, preprocessor lines and function
+    bodies dropped)."""
+    text = re.sub(r"/\*.*?\*/", " ", text.replace("\\\n", " "), flags=re.S)
+    text = "\n".join(l for l in re.sub(r"//[^\n]*", "", text).splitlines()
+                     if not l.lstrip().startswith("#"))
+    items, depth, start = [], 0, 0
+    for i, c in enumerate(text):
+        if c == "{":
+            depth += 1
+        elif c == "}":
+            depth -= 1
+            if depth == 0 and "(" in text[start:i].split("{", 1)[0]:
+                start = i + 1  # the end of a function's body (list.h's inline helpers)
+        elif c == ";" and depth == 0:
+            items.append(text[start:i + 1].strip())
+            start = i + 1
+    return items
+
+
+def _is_type_declaration(item):
+    # Structs, unions, named enums and typedefs: what a struct's layout can depend on (no functions, no constants).
+    if item.startswith("typedef"):
+        return True
+    head = item.split("{", 1)[0]
+    return re.match(r"(struct|union|enum)\s+\w", item) is not None and "(" not in head
+
+
+def _renamed(declarations):
+    # Every tag and typedef name prefixed, so they cannot clash with the host's own cdef.
+    text = re.sub(r"\b(struct|union|enum)\s+(\w+)", r"\1 " + HOST_PREFIX + r"\2", declarations)
+    for item in _c_items(text):
+        if item.startswith("typedef"):
+            name = re.search(r"\(\s*\*\s*(\w+)\s*\)|(\w+)\s*(\[[^]]*\]\s*)*;$", item)
+            if name:
+                old = name.group(1) or name.group(2)
+                text = re.sub(r"\b%s\b" % (old,), HOST_PREFIX + old, text)
+    return text
+
+
+def _host_version(config):
+    # The host's own name for its version (git describe, "?" when run from a tree without git).
+    name = "Kalico" if __name__.startswith("klippy.") else "Klipper"
+    version = config.get_printer().get_start_args().get("software_version") or "?"
+    return "%s version %r" % (name, version)
+
+
+def _declare_host_structs(config, ffi):
+    """Hands the host's own declarations of the shared structs (its klippy/chelper headers, as it compiled its
+    step generator from them) to its cffi, under HOST_PREFIX names; the chelper folder."""
+    folder = os.path.dirname(os.path.realpath(chelper.__file__))
+    declarations = []
+    try:
+        for header in HOST_HEADERS:
+            with open(os.path.join(folder, header)) as f:
+                declarations += [i for i in _c_items(f.read()) if _is_type_declaration(i)]
+        ffi.cdef(_renamed("\n".join(declarations)))
+    except Exception as e:
         raise config.error(
-            "jointspace: %s was built for another struct stepper_kinematics "
-            "(layout %s, host %s)" % (path, list(ours), theirs))
+            "jointspace: cannot read the struct layouts of %s from %s (%s): the plug-in does not know this host"
+            % (_host_version(config), folder, e))
+    return folder
+
+
+def _host_layout(ffi, name):
+    # (size, {field: (offset, size)}) of the host's struct `name`, as its header declares it on this platform.
+    t = ffi.typeof("struct " + HOST_PREFIX + name)
+    return ffi.sizeof(t), {f: (d.offset, ffi.sizeof(d.type)) for f, d in t.fields}
+
+
+def _library_layout(ffi, lib, name):
+    # (size or None, {field: (offset, size)}): the library's idea of the struct (jointspace_struct_layout).
+    size, fields = None, {}
+    for line in ffi.string(lib.jointspace_struct_layout(name.encode())).decode().splitlines():
+        words = line.split()
+        if words[0] == "size":
+            size = int(words[1])
+        else:
+            fields[words[0]] = (int(words[1]), int(words[2]))
+    return size, fields
+
+
+def _layout_differences(library, host):
+    """What differs between the library's layout of a struct and the host's, as phrases in the host's field order
+    (none when they agree). With a size, the library allocates the struct: the fields must be exactly the host's."""
+    (size, fields), (host_size, host_fields) = library, host
+    found = []
+    for field, (offset, width) in fields.items():
+        if field not in host_fields:
+            found.append((offset, "no field %s (the library's at offset %d)" % (field, offset)))
+        elif host_fields[field] != (offset, width):
+            found.append((host_fields[field][0], "%s at offset %d size %d, the library's at %d size %d"
+                          % ((field,) + host_fields[field] + (offset, width))))
+    if size is not None:
+        found += [(host_fields[f][0], "field %s at offset %d, unknown to the library" % (f, host_fields[f][0]))
+                  for f in host_fields if f not in fields]
+    out = ["size %d, the library's %d" % (host_size, size)] if size not in (None, host_size) else []
+    return out + [phrase for _, phrase in sorted(found)]
+
+
+def _summary(differences, shown=3):
+    # The first few, as one field moved shifts every later one.
+    more = len(differences) - shown
+    return "; ".join(differences[:shown]) + ("; and %d more" % (more,) if more > 0 else "")
+
+
+def _check_host_structs(config, ffi, lib, path):
+    # Klipper's step generator and the library share two structs: a host whose headers lay either out otherwise
+    # would load and step with wrong offsets, so it is refused here, before any stepper exists.
+    folder = _declare_host_structs(config, ffi)
+    for name, header in SHARED_STRUCTS:
+        differences = _layout_differences(_library_layout(ffi, lib, name), _host_layout(ffi, name))
+        if differences:
+            raise config.error(
+                "jointspace: %s declares struct %s (%s) otherwise than %s (%s) was built for: %s. It would step "
+                "with wrong offsets: use a jointspace release that supports this host version"
+                % (_host_version(config), name, os.path.join(folder, header), path,
+                   ffi.string(lib.jointspace_version()).decode(), _summary(differences)))
 
 
 _LIBRARY = {}
-PROBE_MOVE = """
-    struct jointspace_probe_move {
-        double print_time, move_t, start_v, half_accel;
-        double start_pos[3], axes_r[3];
-        void *node[2];
-    };"""
+SK = "struct " + HOST_PREFIX + "stepper_kinematics *"
 
 
-def _sample_moves(move, count):
+def _sample_moves(ffi, move, count):
     # Fixed pseudo-random moves (a 64-bit LCG): the same probe on every start. Yields a time into each move.
+    # The positions through double views: the layout check found each struct coord to be three doubles.
+    start_pos = ffi.cast("double *", ffi.addressof(move, "start_pos"))
+    axes_r = ffi.cast("double *", ffi.addressof(move, "axes_r"))
     state = 12345
     for _ in range(count):
         values = []
@@ -123,9 +263,9 @@ def _sample_moves(move, count):
         move.move_t = 1. + values[0]
         move.start_v = 300. * values[1]
         move.half_accel = 1500. * (values[2] - .5)
-        move.start_pos[0], move.start_pos[1] = 600. * (values[3] - .5), 600. * (values[4] - .5)
-        move.axes_r[0] = values[5] - .5
-        move.axes_r[1] = math.sqrt(max(0., 1. - move.axes_r[0] ** 2)) * (1 if values[6] > .5 else -1)
+        start_pos[0], start_pos[1] = 600. * (values[3] - .5), 600. * (values[4] - .5)
+        axes_r[0] = values[5] - .5
+        axes_r[1] = math.sqrt(max(0., 1. - axes_r[0] ** 2)) * (1 if values[6] > .5 else -1)
         yield values[7] * move.move_t
 
 
@@ -135,11 +275,10 @@ def _host_arithmetic(ffi, lib):
     positions exactly as the host's would, so step times agree to the bit. None when neither matches."""
     host_lib = chelper.get_ffi()[1]
     sk = ffi.gc(host_lib.polar_stepper_alloc(b"r"), host_lib.free)
-    probe = ffi.cast("struct jointspace_layout_probe *", sk)
-    calc = ffi.cast("double (*)(void *, void *, double)", probe.calc_position_cb)
-    move = ffi.new("struct jointspace_probe_move *")
+    calc = ffi.cast("double (*)(void *, void *, double)", ffi.cast(SK, sk).calc_position_cb)
+    move = ffi.new("struct " + HOST_PREFIX + "move *")
     matches = {0: True, 1: True}
-    for t in _sample_moves(move, 400):
+    for t in _sample_moves(ffi, move, 400):
         host = calc(sk, move, t)
         for fused in (0, 1):
             if lib.jointspace_polar_radius(move, t, fused) != host:
@@ -158,10 +297,10 @@ def load_library(config):
     if "lib" not in _LIBRARY:
         path = _library_path(config)
         ffi.cdef(_cdef_text())
-        lib = ffi.dlopen(path)
+        lib = _open(config, ffi, path)
+        _check_version(config, ffi, lib, path)
         _check_built_from_this_header(config, lib, path)
-        _check_layout(config, ffi, lib, path)
-        ffi.cdef(PROBE_MOVE)
+        _check_host_structs(config, ffi, lib, path)
         fused = _host_arithmetic(ffi, lib)
         if fused is None:
             logging.warning("jointspace: the host's step solver rounds in neither known way; "
@@ -246,10 +385,10 @@ class Machine:
         return self.ffi.gc(sk, chelper.get_ffi()[1].free)
 
     def commanded(self, sk):
-        return self.ffi.cast("struct jointspace_layout_probe *", sk).commanded_pos
+        return self.ffi.cast(SK, sk).commanded_pos
 
     def set_commanded(self, sk, value):
-        self.ffi.cast("struct jointspace_layout_probe *", sk).commanded_pos = value
+        self.ffi.cast(SK, sk).commanded_pos = value
 
     def linear_stepper_kinematics(self, cx, cy, cz):
         sk = self.lib.jointspace_linear_stepper_alloc(cx, cy, cz, _LIBRARY["fused"])

@@ -1,8 +1,10 @@
 //! The two C structs of Klipper's step generator this library touches, laid out as in
 //! `klippy/chelper/itersolve.h` and `trapq.h` (identical in Klipper, Kalico and the FEKT-SCARA fork).
-//! The test suite compiles a C program against each host's headers and compares sizes and offsets.
+//! [`layout`] describes them as this library was built; the plug-in compares that, at load, with the layout the
+//! running host's own headers give, and the test suite with a C program compiled against each host's headers.
 
-use std::ffi::c_void;
+use std::ffi::{CString, c_void};
+use std::sync::OnceLock;
 
 /// `sk_calc_callback`: the stepper's position (its own unit) at `move_time` into move `m`.
 pub type CalcPositionCallback =
@@ -66,5 +68,42 @@ impl Move {
             self.start_pos[1] + self.axes_r[1] * distance,
             self.start_pos[2] + self.axes_r[2] * distance,
         ]
+    }
+}
+
+/// The size of a field, named by a projection (Rust has no `size_of` for a field by name).
+fn field_size<S, F>(_: fn(&S) -> &F) -> usize {
+    std::mem::size_of::<F>()
+}
+
+/// `name offset size` lines, one per listed field of `$t`.
+macro_rules! field_lines {
+    ($t:ty; $($f:ident),+) => {
+        [$(format!(
+            "{} {} {}\n",
+            stringify!($f),
+            std::mem::offset_of!($t, $f),
+            field_size(|s: &$t| &s.$f)
+        )),+].concat()
+    };
+}
+
+/// Klipper's struct `name` ("stepper_kinematics" or "move") as this library was built for it, as text: a
+/// `size N` line for the struct the library allocates (so the host's fields must be exactly these), then
+/// `field offset size` per field. `struct move` has no size line: the library reads its leading fields through the
+/// host's pointer and never sizes it. `None` for another name.
+pub fn layout(name: &str) -> Option<&'static CString> {
+    static LAYOUTS: OnceLock<[CString; 2]> = OnceLock::new();
+    let [stepper_kinematics, moves] = LAYOUTS.get_or_init(|| {
+        let sk = format!("size {}\n", std::mem::size_of::<StepperKinematics>())
+            + &field_lines!(StepperKinematics; step_dist, commanded_pos, sc, last_flush_time, last_move_time, tq,
+                active_flags, gen_steps_pre_active, gen_steps_post_active, calc_position_cb, post_cb);
+        let m = field_lines!(Move; print_time, move_t, start_v, half_accel, start_pos, axes_r);
+        [sk, m].map(|text| CString::new(text).unwrap_or_default())
+    });
+    match name {
+        "stepper_kinematics" => Some(stepper_kinematics),
+        "move" => Some(moves),
+        _ => None,
     }
 }

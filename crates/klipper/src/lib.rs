@@ -69,8 +69,40 @@ fn machine<'a>(m: *const Machine) -> Option<&'a Machine> {
     unsafe { m.as_ref() }
 }
 
+const HEADER: &[u8] = include_bytes!("../../../klipper/jointspace.h");
+
 /// FNV-1a (64-bit) of `klipper/jointspace.h` as this library was built from it.
-const HEADER_HASH: u64 = fnv1a(include_bytes!("../../../klipper/jointspace.h"));
+const HEADER_HASH: u64 = fnv1a(HEADER);
+
+// The header names the version it belongs to (the plug-in refuses a library of another version): a version bump
+// without the header's fails the build rather than every printer's start.
+const _: () = assert!(
+    contains(
+        HEADER,
+        concat!(
+            "#define JOINTSPACE_VERSION \"",
+            env!("CARGO_PKG_VERSION"),
+            "\"\n"
+        )
+        .as_bytes()
+    ),
+    "klipper/jointspace.h's JOINTSPACE_VERSION is not this crate's version"
+);
+
+const fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    let mut start = 0;
+    while start + needle.len() <= haystack.len() {
+        let mut i = 0;
+        while i < needle.len() && haystack[start + i] == needle[i] {
+            i += 1;
+        }
+        if i == needle.len() {
+            return true;
+        }
+        start += 1;
+    }
+    false
+}
 
 const fn fnv1a(bytes: &[u8]) -> u64 {
     let mut hash = 0xcbf2_9ce4_8422_2325_u64;
@@ -95,26 +127,21 @@ pub extern "C" fn jointspace_version() -> *const c_char {
     guarded(c"".as_ptr(), NO_BUFFER, || VERSION.as_ptr())
 }
 
-/// Layout of `struct stepper_kinematics` as this library was built for it: size, then the offsets of
-/// `commanded_pos`, `active_flags`, `calc_position_cb` and `post_cb` (written into `out[0..5]`). The tests
-/// compare it with the host's `itersolve.h`; the Python side refuses to load on a mismatch.
+/// Klipper's `struct stepper_kinematics` or `struct move` (`name` without `struct`) as this library was built for
+/// it ([`abi::layout`]: `size N` for the struct it allocates, then `field offset size` lines); null for another
+/// name. The plug-in compares it with the running host's own `itersolve.h` and `trapq.h` and refuses a mismatch.
 ///
 /// # Safety
-/// `out` points to at least five `size_t`.
+/// `name` is a NUL-terminated string (or null).
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn jointspace_stepper_kinematics_layout(out: *mut usize) {
-    guarded((), NO_BUFFER, || {
-        let layout = [
-            std::mem::size_of::<StepperKinematics>(),
-            std::mem::offset_of!(StepperKinematics, commanded_pos),
-            std::mem::offset_of!(StepperKinematics, active_flags),
-            std::mem::offset_of!(StepperKinematics, calc_position_cb),
-            std::mem::offset_of!(StepperKinematics, post_cb),
-        ];
-        for (i, v) in layout.into_iter().enumerate() {
-            // SAFETY: per the contract, out has five slots.
-            unsafe { *out.add(i) = v };
+pub unsafe extern "C" fn jointspace_struct_layout(name: *const c_char) -> *const c_char {
+    guarded(ptr::null(), NO_BUFFER, || {
+        if name.is_null() {
+            return ptr::null();
         }
+        // SAFETY: per the contract, a NUL-terminated string.
+        let name = unsafe { CStr::from_ptr(name) }.to_string_lossy();
+        abi::layout(&name).map_or(ptr::null(), |text| text.as_ptr())
     })
 }
 

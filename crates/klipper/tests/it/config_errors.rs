@@ -129,3 +129,70 @@ except Exception as e:
         String::from_utf8_lossy(&output.stderr)
     );
 }
+
+/// A shared library answering `jointspace_version` and `jointspace_header_hash` as given, and nothing else.
+fn fake_library(dir: &Path, name: &str, version: &str, hash: &str) -> std::path::PathBuf {
+    let source = write(
+        dir,
+        &format!("{name}.c"),
+        &format!(
+            "const char *jointspace_version(void) {{ return \"{version}\"; }}\n\
+             unsigned long long jointspace_header_hash(void) {{ return {hash}ULL; }}\n"
+        ),
+    );
+    let library = dir.join(format!("{name}.so"));
+    let built = std::process::Command::new("cc")
+        .args(["-shared", "-fPIC", "-o"])
+        .arg(&library)
+        .arg(&source)
+        .status()
+        .expect("cc runs");
+    assert!(built.success(), "{name} did not compile");
+    library
+}
+
+/// `[jointspace] library:` may name any file, but the plug-in loads only its own release built from its own header:
+/// another version, another header, or a file that is no library at all stops the host with a config error.
+#[test]
+fn a_named_library_of_another_version_or_abi_is_refused() {
+    let Some(hosts) = Hosts::get("a_named_library_of_another_version_or_abi_is_refused") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let ours = concat!("jointspace-klipper ", env!("CARGO_PKG_VERSION"));
+    let other_version = fake_library(dir.path(), "other-version", "jointspace-klipper 9.9.9", "0");
+    let other_header = fake_library(dir.path(), "other-header", ours, "12345");
+    let not_a_library = write(dir.path(), "not-a-library.so", "text\n");
+    let cases = [
+        (
+            &other_version,
+            format!("is jointspace-klipper 9.9.9, this plug-in is {ours}"),
+        ),
+        (
+            &other_header,
+            "was built from another version of jointspace.h".to_string(),
+        ),
+        (
+            &not_a_library,
+            format!("cannot load {} as a library", not_a_library.display()),
+        ),
+    ];
+    for (library, phrase) in cases {
+        let cfg = polar_example(
+            dir.path(),
+            &format!(
+                "{}.cfg",
+                library.file_stem().and_then(|s| s.to_str()).expect("name")
+            ),
+            |t| {
+                t.replace(
+                    "[jointspace]\n",
+                    &format!("[jointspace]\nlibrary: {}\n", library.display()),
+                )
+            },
+        );
+        for host in [KLIPPER, KALICO] {
+            expect_refusal(hosts, host, &cfg, dir.path(), &phrase);
+        }
+    }
+}

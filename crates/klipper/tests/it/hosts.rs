@@ -69,6 +69,19 @@ impl Hosts {
         self.dir.join(format!("venv-{host}/bin/python"))
     }
 
+    /// The folder the hosts were set up in (`KLIP_DIR` for `batch.sh`).
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The same library with host trees from another folder laid out as `dir()` is (a test's altered copy).
+    pub fn in_dir(&self, dir: &Path) -> Hosts {
+        Hosts {
+            dir: dir.to_path_buf(),
+            library: self.library.clone(),
+        }
+    }
+
     /// The library the hosts load.
     pub fn library(&self) -> &Path {
         &self.library

@@ -108,18 +108,14 @@ pub const RADIAL_ROUNDING: f64 = 1e-9;
 /// Why a point or a segment cannot be reached.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReachError {
-    #[error(
-        "({x:.3}, {y:.3}) is out of reach: {distance:.3} mm from the shoulder, maximum {max:.3} mm"
-    )]
+    #[error("({}, {}) is out of reach: {} mm from the shoulder, maximum {} mm", readable(*x), readable(*y), readable(*distance), readable(*max))]
     OutOfReach {
         x: f64,
         y: f64,
         distance: f64,
         max: f64,
     },
-    #[error(
-        "({x:.3}, {y:.3}) is inside the minimum radius: {distance:.3} mm from the axis, minimum {min:.3} mm"
-    )]
+    #[error("({}, {}) is inside the minimum radius: {} mm from the axis, minimum {} mm", readable(*x), readable(*y), readable(*distance), readable(*min))]
     InsideMinimumRadius {
         x: f64,
         y: f64,
@@ -133,18 +129,16 @@ pub enum ReachError {
         min: f64,
         max: f64,
     },
-    #[error("({x:.3}, {y:.3}) cannot be reached on the configured elbow branch")]
+    #[error("({}, {}) cannot be reached on the configured elbow branch", readable(*x), readable(*y))]
     BranchImpossible { x: f64, y: f64 },
-    #[error(
-        "({x:.3}, {y:.3}) is too close to a singular pose (|sin q2| = {sin_q2:.4}, margin {margin:.4})"
-    )]
+    #[error("({}, {}) is too close to a singular pose (|sin q2| = {sin_q2:.4}, margin {margin:.4})", readable(*x), readable(*y))]
     Singular {
         x: f64,
         y: f64,
         sin_q2: f64,
         margin: f64,
     },
-    #[error("({x:.3}, {y:.3}) is at the rotation centre, where the bed angle is undefined")]
+    #[error("({}, {}) is at the rotation centre, where the bed angle is undefined", readable(*x), readable(*y))]
     AtCentre { x: f64, y: f64 },
     #[error("axis {axis} at {}", beyond_limits(*value, *min, *max, 3))]
     AxisLimit {
@@ -157,10 +151,23 @@ pub enum ReachError {
     NotFinite,
 }
 
+/// A coordinate or distance for a message, in mm: three decimals, or in exponent form where that would print
+/// hundreds of digits (a G-code file can ask for a point at 1e300 mm).
+pub fn readable(value: f64) -> String {
+    if value.abs() < 1e9 {
+        format!("{value:.3}")
+    } else {
+        format!("{value:.3e}")
+    }
+}
+
 /// `value, outside its limits [min, max]` with at least `decimals` decimals, and more where needed so that the
 /// value never reads as equal to the limit it exceeds (`150.0000001`, not `150.0000`).
 fn beyond_limits(value: f64, min: f64, max: f64, decimals: usize) -> String {
     let limit = if value > max { max } else { min };
+    if value.abs() >= 1e9 {
+        return format!("{}, outside its limits [{min}, {max}]", readable(value));
+    }
     let d = decimals_apart(value, limit, decimals);
     format!("{value:.d$}, outside its limits [{min:.d$}, {max:.d$}]")
 }

@@ -26,7 +26,27 @@ pub enum PlanErrorKind {
     NoHoming,
     #[error("arc too long: it would be split into {chords:.0} chords")]
     ArcTooLong { chords: f64 },
+    #[error(
+        "the print would last {} by here, beyond the {MAX_PRINT_SECONDS:.0e} s any print may take (a feed rate or \
+         a dwell far from what was meant?)",
+        lasting(*seconds)
+    )]
+    TooLong { seconds: f64 },
 }
+
+/// How long a print would last, for a refusal.
+fn lasting(seconds: f64) -> String {
+    if seconds.is_finite() {
+        format!("at least {seconds:.3e} s")
+    } else {
+        "for ever".to_string()
+    }
+}
+
+/// The longest a print may last (s, about 31 years). Beyond it the MCU's 64-bit clock would come within reach of
+/// overflowing at the clock rates of real boards, and no print takes that long: a move or dwell that would take
+/// the print there (a subnormal feed rate, `G4 P1e300`) is refused at its line.
+pub const MAX_PRINT_SECONDS: f64 = 1e9;
 
 impl PlanError {
     /// The move's segment could not be reached (as opposed to a bad command).
@@ -66,6 +86,8 @@ pub struct Planner<'k, S: MoveSink> {
     /// Where G28 leaves the toolhead (machine coordinates), if the machine can home.
     home_position: Option<[f64; 3]>,
     warnings: Vec<Warning>,
+    /// The least time the commands so far take (s): each move at its requested speed, each dwell.
+    least_time: f64,
 }
 
 impl<'k, S: MoveSink> Planner<'k, S> {
@@ -79,6 +101,7 @@ impl<'k, S: MoveSink> Planner<'k, S> {
             arc_resolution,
             home_position,
             warnings: Vec::new(),
+            least_time: 0.0,
         }
     }
 
@@ -158,6 +181,19 @@ impl<'k, S: MoveSink> Planner<'k, S> {
     pub fn command(&mut self, cmd: &Spanned<Command>) -> Result<Option<[f64; 4]>, PlanError> {
         let span = cmd.span;
         let err = |kind: PlanErrorKind| PlanError { span, kind };
+        let least_time = self.least_time + self.least_duration(&cmd.value);
+        if !(least_time <= MAX_PRINT_SECONDS) {
+            // A target out of reach says so first: that is the likelier mistake.
+            if let Some(target) = target_of(cmd) {
+                self.toolhead
+                    .check_point(xyz_of(target))
+                    .map_err(|e| err(e.into()))?;
+            }
+            return Err(err(PlanErrorKind::TooLong {
+                seconds: least_time,
+            }));
+        }
+        self.least_time = least_time;
         match &cmd.value {
             Command::Move(mv) => {
                 self.toolhead
@@ -203,6 +239,30 @@ impl<'k, S: MoveSink> Planner<'k, S> {
             | Command::Meta(_) => {}
         }
         Ok(None)
+    }
+
+    /// The least time `command` takes (s): a move's or arc's straight distance at its requested speed, a dwell's
+    /// wait; nothing for the rest.
+    fn least_duration(&self, command: &Command) -> f64 {
+        let from = self.toolhead.position();
+        let at_speed = |target: [f64; 4], feed: f64| {
+            let xyz = (0..3)
+                .map(|i| (target[i] - from[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let distance = if xyz > 0.0 {
+                xyz
+            } else {
+                (target[3] - from[3]).abs()
+            };
+            if distance > 0.0 { distance / feed } else { 0.0 }
+        };
+        match command {
+            Command::Move(mv) => at_speed(mv.target, mv.feed),
+            Command::Arc(arc) => at_speed(arc.target, arc.feed),
+            Command::Dwell { seconds } => *seconds,
+            _ => 0.0,
+        }
     }
 
     /// G28: the machine runs to its endstops; the pose there is known from the configuration.

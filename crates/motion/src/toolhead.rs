@@ -26,7 +26,12 @@ const DISABLE_STALL_TIME: f64 = 0.100;
 /// Why a move was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MoveError {
-    #[error("move to ({x:.3}, {y:.3}, {z:.3}) is not reachable: {source}")]
+    #[error(
+        "move to ({}, {}, {}) is not reachable: {source}",
+        kinematics::readable(*x),
+        kinematics::readable(*y),
+        kinematics::readable(*z)
+    )]
     Unreachable {
         x: f64,
         y: f64,

@@ -82,8 +82,15 @@ fn offending(path: &str, lines: &[String], matches: impl Fn(&str) -> bool) -> Ve
         .collect()
 }
 
+/// A stepper section's name as a string (`"stepper_z"`, `"stepper_bed"`), not a longer word that starts alike
+/// (`"stepper_kinematics"`, Klipper's C struct).
 fn stepper_literal(line: &str) -> bool {
-    line.contains("\"stepper_")
+    line.match_indices("\"stepper_").any(|(at, found)| {
+        let rest = &line[at + found.len()..];
+        rest.find('"').is_some_and(|end| {
+            (1..=4).contains(&end) && rest[..end].chars().all(|c| c.is_ascii_alphanumeric())
+        })
+    })
 }
 
 fn kind_switch(line: &str) -> bool {
@@ -159,6 +166,8 @@ fn the_invariant_checks_see_what_they_look_for() {
     );
     assert!(kind_switch("if let MachineParams::Scara(p) = params {"));
     assert!(!kind_switch("params: &MachineParams,"));
+    assert!(stepper_literal("endstop(machine, \"stepper_bed\")"));
+    assert!(!stepper_literal("\"stepper_kinematics\" => Some(layout),"));
     assert!(!centre_constant("let near_centre = 1.0;"));
     assert!(builds_kinematics("let kin = kinematics::build(&params)?;"));
 }

@@ -182,7 +182,7 @@ impl<'k, S: MoveSink> Planner<'k, S> {
         let span = cmd.span;
         let err = |kind: PlanErrorKind| PlanError { span, kind };
         let least_time = self.least_time + self.least_duration(&cmd.value);
-        if !(least_time <= MAX_PRINT_SECONDS) {
+        if least_time.is_nan() || least_time > MAX_PRINT_SECONDS {
             // A target out of reach says so first: that is the likelier mistake.
             if let Some(target) = target_of(cmd) {
                 self.toolhead

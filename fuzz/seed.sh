@@ -6,7 +6,7 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 shared="$here/../../shared"
 corpus="$here/corpus"
-mkdir -p "$corpus"/{lexer,config,pipeline,convert}
+mkdir -p "$corpus"/{lexer,config,pipeline,convert,includes}
 
 # Classic edge cases every G-code target starts from, whether or not ../shared is present.
 printf 'G28\nG1 X10 Y10 F3000\nG1 X20 E1\n' >"$corpus/lexer/basic"
@@ -14,6 +14,11 @@ printf 'N1 G1 X1*40\nG2 X10 Y0 I5 J0\nG91\nG1 X-1e308\n' >"$corpus/lexer/edges"
 printf 'SET_VELOCITY_LIMIT VELOCITY=100 ACCEL=500\nM204 S1000\nG92 E0\nG4 P10\n' >"$corpus/lexer/klipper"
 cp "$corpus"/lexer/* "$corpus/pipeline/"
 cp "$corpus"/lexer/* "$corpus/convert/"
+# Include trees: a chain, a cycle, a diamond and a glob (files separated by NUL bytes, f0.cfg first).
+printf '[include f1.cfg]\n\0[include f2.cfg]\n\0[printer]\nkinematics: cartesian\n' >"$corpus/includes/chain"
+printf '[include f1.cfg]\n\0[include f0.cfg]\n' >"$corpus/includes/cycle"
+printf '[include f1.cfg]\n[include f2.cfg]\n\0[include f3.cfg]\n\0[include f3.cfg]\n\0\n' >"$corpus/includes/diamond"
+printf '[include f*.cfg]\n\0[include /dev/null]\n' >"$corpus/includes/glob"
 
 if [ -d "$shared/corpus" ]; then
   # 40-line snippets at a few places of every corpus file: headers, layer changes, arcs, retractions.

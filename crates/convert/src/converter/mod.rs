@@ -249,7 +249,11 @@ impl<W: Write> Converter<W> {
                 self.arc(span, a)
             }
             Command::Home { axes } => self.home(raw, *axes),
-            Command::SetPosition { position } => self.set_position(raw, position),
+            Command::SetPosition { position } => {
+                // A G92 value as far out as a move's would overflow the written E's integer units.
+                check_magnitudes(span, &position.map(|v| v.unwrap_or(0.0)))?;
+                self.set_position(raw, position)
+            }
             Command::SetKinematicPosition { .. } => Err(ConvertError::Unsupported {
                 span,
                 what: "SET_KINEMATIC_POSITION".into(),

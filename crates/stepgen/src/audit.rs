@@ -88,7 +88,7 @@ pub(crate) fn first_short_step(
 pub struct ExpectedTravel<'k> {
     kin: &'k dyn Kinematics,
     /// Motor travel so far, kinematic motors then the extruder; `None` once a stretch ended where the
-    /// kinematics give no motor position (a polar bed on its centre): that motor cannot be checked.
+    /// kinematics give no motor position (a polar bed's is followed move by move instead, `bed`).
     travel: Vec<Option<f64>>,
     /// Where the current stretch starts, and its last move so far (whose end is computed only when the
     /// stretch closes).
@@ -97,6 +97,46 @@ pub struct ExpectedTravel<'k> {
     /// Declared positions so far: each starts the motors afresh off the step grid (as Klipper's
     /// `SET_KINEMATIC_POSITION` does), so each stretch may round by up to one step.
     declared: u32,
+    /// A polar bed, followed move by move (at its centre its angle is no point's: the stretches cannot give it).
+    bed: Option<BedTravel>,
+}
+
+/// A polar bed's turns along the planned path, move by move: a line away from the centre turns it by the change of
+/// the nozzle's angle (less than half a turn: the planner cuts every line that meets the centre there), a line to or
+/// from the centre not at all (the bed was turned to its direction in place), a turn in place by its angle.
+#[derive(Debug, Clone, Copy)]
+struct BedTravel {
+    motor: usize,
+    centre: [f64; 2],
+    tolerance: f64,
+    turned: f64,
+}
+
+impl BedTravel {
+    fn of(kin: &dyn Kinematics) -> Option<BedTravel> {
+        let c = kin.rotation_centre()?;
+        Some(BedTravel {
+            motor: c.bed,
+            centre: c.point,
+            tolerance: c.tolerance,
+            turned: 0.0,
+        })
+    }
+
+    fn add(&mut self, mv: &trapq::TrapezoidMove) {
+        if mv.motion == trapq::Motion::BedTurn {
+            self.turned += mv.distance();
+            return;
+        }
+        let angle = |p: Vec3| (p[1] - self.centre[1]).atan2(p[0] - self.centre[0]);
+        let near = |p: Vec3| (p[0] - self.centre[0]).hypot(p[1] - self.centre[1]) <= self.tolerance;
+        let (a, b) = (mv.start_pos, mv.end_pos());
+        if near(a) || near(b) {
+            return;
+        }
+        let turn = angle(b) - angle(a);
+        self.turned += turn - std::f64::consts::TAU * (turn / std::f64::consts::TAU).round();
+    }
 }
 
 impl<'k> ExpectedTravel<'k> {
@@ -108,6 +148,7 @@ impl<'k> ExpectedTravel<'k> {
             stretch_start: None,
             last_move: None,
             declared: 0,
+            bed: BedTravel::of(kin),
         }
     }
 
@@ -118,10 +159,14 @@ impl<'k> ExpectedTravel<'k> {
         };
         let n = self.kin.motors().len();
         let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
-        let known = self.kin.inverse(first, &mut a).is_ok()
-            && self.kin.inverse(mv.end_pos(), &mut b).is_ok();
+        // Near the previous reading, so a stretch that starts or ends on a polar centre still has its other motors.
+        let known = self.kin.inverse_near(first, &vec![0.0; n], &mut a).is_ok()
+            && self.kin.inverse_near(mv.end_pos(), &a, &mut b).is_ok();
+        let bed = self.bed.map(|bed| bed.motor);
         for (i, travel) in self.travel.iter_mut().take(n).enumerate() {
-            *travel = travel.filter(|_| known).map(|t| t + b[i] - a[i]);
+            if Some(i) != bed {
+                *travel = travel.filter(|_| known).map(|t| t + b[i] - a[i]);
+            }
         }
     }
 
@@ -129,6 +174,9 @@ impl<'k> ExpectedTravel<'k> {
     /// many stretches it was planned in (the steps may differ from the travel by up to a step per stretch).
     pub fn finish(mut self) -> (Vec<Option<f64>>, u32) {
         self.close_stretch();
+        if let Some(bed) = self.bed {
+            self.travel[bed.motor] = Some(bed.turned);
+        }
         (self.travel, self.declared + 1)
     }
 }
@@ -143,6 +191,9 @@ impl trapq::MoveSink for ExpectedTravel<'_> {
             trapq::Queue::Toolhead => {
                 self.stretch_start.get_or_insert(mv.start_pos);
                 self.last_move = Some(*mv);
+                if let Some(bed) = &mut self.bed {
+                    bed.add(mv);
+                }
             }
             trapq::Queue::Extruder => {
                 let n = self.kin.motors().len();
@@ -195,6 +246,65 @@ mod tests {
         run.steps(clocks, true);
         assert_eq!(one.problem(), run.problem(), "{clocks:?}");
         one.problem()
+    }
+
+    /// A straight move from `a` to `b` at constant speed.
+    fn line(a: Vec3, b: Vec3) -> trapq::TrapezoidMove {
+        let d = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
+        trapq::TrapezoidMove {
+            print_time: 0.0,
+            accel_t: 0.0,
+            cruise_t: d / 10.0,
+            decel_t: 0.0,
+            start_pos: a,
+            axes_r: [(b[0] - a[0]) / d, (b[1] - a[1]) / d, (b[2] - a[2]) / d],
+            start_v: 10.0,
+            cruise_v: 10.0,
+            accel: 0.0,
+            motion: trapq::Motion::Travel,
+        }
+    }
+
+    /// Through a polar centre and on: the bed's travel is the sum of its turns (geometry worked out here: a quarter
+    /// turn on the way to (0, 50), half a turn in place, an eighth on the last line), and the arm stays checked
+    /// after the stretch that ended on the centre.
+    #[test]
+    fn a_polar_bed_is_followed_through_its_centre() {
+        use trapq::{MoveSink, Queue, TrapezoidMove};
+        let params = kinematics::MachineParams::Polar(kinematics::PolarParams::klipper_example());
+        let kin = kinematics::build(&params).expect("polar");
+        let mut travel = ExpectedTravel::new(kin.as_ref(), false);
+        let moves = [
+            line([50.0, 0.0, 0.0], [0.0, 50.0, 0.0]),
+            line([0.0, 50.0, 0.0], [0.0, 0.0, 0.0]),
+            TrapezoidMove::bed_turn(1.0, [0.0; 3], std::f64::consts::PI, 5.0, 50.0),
+            line([0.0, 0.0, 0.0], [0.0, -40.0, 0.0]),
+            line([0.0, -40.0, 0.0], [40.0, -40.0, 0.0]),
+        ];
+        travel
+            .set_position([50.0, 0.0, 0.0], 0.0)
+            .expect("declared");
+        for mv in &moves[..2] {
+            travel.append(Queue::Toolhead, mv).expect("taken");
+        }
+        // A declared pose on the centre ends a stretch there.
+        travel.set_position([0.0, 0.0, 0.0], 0.0).expect("declared");
+        for mv in &moves[2..] {
+            travel.append(Queue::Toolhead, mv).expect("taken");
+        }
+        let (travel, stretches) = travel.finish();
+        let quarter = std::f64::consts::FRAC_PI_2;
+        let bed = travel[kinematics::polar::BED].expect("the bed is known");
+        assert!(
+            (bed - (quarter + 2.0 * quarter + quarter / 2.0)).abs() < 1e-12,
+            "{bed}"
+        );
+        let arm = travel[kinematics::polar::ARM].expect("the arm is known");
+        assert!(
+            (arm - ((0.0 - 50.0) + (40.0f64.hypot(40.0) - 0.0))).abs() < 1e-9,
+            "{arm}"
+        );
+        assert_eq!(stretches, 3);
     }
 
     #[test]

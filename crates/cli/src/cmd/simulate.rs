@@ -56,9 +56,12 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     }
     let options = ReplayOptions::default();
     // Each simulation's pictures are drawn as soon as it ends and its path dropped: one path in memory at a time.
-    let before = simulate_file(&believed, &actual, &args.file, &options)?;
-    sim::report::write_pictures(&args.out, Stage::Before, &before).map_err(|e| report_error(&e))?;
-    let before = RunReport::new(&before);
+    let before = {
+        let run = simulate_file(&believed, &actual, &args.file, &options)?;
+        sim::report::write_pictures(&args.out, Stage::Before, &run)
+            .map_err(|e| report_error(&e))?;
+        RunReport::new(&run)
+    };
     let (correction, after, after_missing) = if args.correct {
         corrected_run(&args, &believed, &actual, &options)?
     } else {

@@ -348,6 +348,12 @@ fn simulate_correct_holds_one_simulation_at_a_time() {
         long as f64 / 1024.0
     );
     assert!(layers.abs_diff(300) <= 1);
-    assert!(corrected <= plain + plain / 3, "{plain} kB → {corrected} kB");
-    assert!(long <= corrected + corrected / 4, "{corrected} kB → {long} kB");
+    assert!(
+        corrected <= plain + plain / 3,
+        "{plain} kB → {corrected} kB"
+    );
+    assert!(
+        long <= corrected + corrected / 4,
+        "{corrected} kB → {long} kB"
+    );
 }

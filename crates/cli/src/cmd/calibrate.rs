@@ -42,8 +42,9 @@ pub struct CentreArgs {
     /// Also write the detections as such a CSV (its header comment states the sign); `-` for standard output.
     #[arg(long, value_name = "CSV")]
     pub save_scan: Option<PathBuf>,
-    /// How well the sensor's axis is known to sit on the nozzle (mm, 1σ): a sensor beside the nozzle or
-    /// tilted shifts dx and dy by that much and no scan can see it; it is added to the reported uncertainty.
+    /// How well the sensor's axis is known to sit on the nozzle (mm, 1σ): a sensor beside the nozzle (or tilted,
+    /// without `--scan-raised`) shifts dx and dy by that much and no scan can see it; it is added to the reported
+    /// uncertainty.
     #[arg(long, default_value_t = 0.05, value_name = "MM")]
     pub sensor_alignment: f64,
     /// Magnets on the bed rim: the ring's size (default 16 for `--simulate`; for `--scan`, the file's `magnets`

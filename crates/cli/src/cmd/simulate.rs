@@ -50,6 +50,8 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     let believed = load_config(&args.config)?;
     let actual_cfg = load_config(&args.actual)?;
     let actual = Machine::from_config(&actual_cfg).map_err(|e| report_error(&e))?;
+    // The G-code is an input too: no report file may replace it (checked before anything is written).
+    crate::output::register_input(&args.file);
     crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
     for name in sim::report::REPORT_FILES {
         crate::output::refuse_input(&args.out.join(name)).map_err(crate::cmd::plain)?;

@@ -113,6 +113,19 @@ pub fn centre(r: &CentreResult, truth: Option<[f64; 2]>) -> String {
          a scan; --sensor-alignment)\n",
         r.sigma_scan[0], r.sigma_scan[1], r.sensor_alignment
     );
+    if let Some(t) = &r.tilt {
+        out += &format!(
+            "  sensor tilt removed: the scan {:.2} mm higher moved the offsets by {:+.4} / {:+.4} mm per mm; \
+             bias {:+.4} / {:+.4} mm at {:.2} mm from the magnets' centres (a tilt of about {:.1}°)\n",
+            t.raise,
+            t.bias[0] / t.distance,
+            t.bias[1] / t.distance,
+            t.bias[0],
+            t.bias[1],
+            t.distance,
+            t.tilt_deg
+        );
+    }
     for flag in &r.flags {
         out += &format!("  warning: {flag}\n");
     }

@@ -3,22 +3,24 @@
 //! - polar: the Hall-sensor centre scan (`calibrate::scan` over [`crate::hall::HallScanner`] built with the
 //!   true arm offsets, magnet placement errors, sensor noise); the measured `arm_zero_offset` and
 //!   `arm_lateral_offset` go into the believed config.
-//! - SCARA: a printed calibration pattern measured on the bed: the nozzle XY at commanded motor angles on the
-//!   true machine plus 0.02 mm (1σ) measurement noise, fitted by `calibrate::scara::identify`; link lengths,
-//!   offsets, joint zeros and the coupling go into the believed config.
+//! - SCARA: the believed machine's calibration pattern (`calibrate::scara::machine_pattern`) printed by the
+//!   machine as built and its crosses measured as with calipers (`crate::crosses`: 0.02 mm noise, read to
+//!   0.01 mm), fitted by `calibrate::scara::identify_in_frame` and judged by `calibrate::scara::judge` as
+//!   `calibrate scara` judges it; a fit judged not trustworthy is not applied (a user would not apply it). Link
+//!   lengths, offsets, joint zeros and the coupling go into the believed config.
 
+use crate::crosses::{CALIPERS, print_and_measure};
 use crate::error::SimulationError;
 use crate::hall::{HallBedConfig, HallScanner};
 use crate::machine::Machine;
 use calibrate::scan::{ScanParams, scan_centre};
-use calibrate::scara::{Measurement, ScaraGeometry, identify};
+use calibrate::scara::{ScaraGeometry, identify_in_frame, judge};
 use config::MachineConfig;
-use kinematics::{MachineParams, PolarParams, ScaraFrame, ScaraParams};
+use kinematics::{MachineParams, PolarParams, ScaraParams};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use rand_distr::{Distribution, Normal};
 use serde::Serialize;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 /// One corrected parameter: believed before, measured, true value.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -36,6 +38,44 @@ pub struct CorrectionSummary {
     pub values: Vec<CorrectedValue>,
     /// Fit quality: RMS residual (mm).
     pub rms: f64,
+    /// What else the calibration found: the measuring noise it assumed, the fit's verdict, warnings.
+    pub notes: Vec<String>,
+}
+
+/// Why the simulated calibration gave no corrected machine.
+#[derive(Debug)]
+pub enum Rejected {
+    /// It could not be done (a scan that failed, a pattern the machine cannot print, a fit that did not converge).
+    Failed(SimulationError),
+    /// It was done, and its fit judged not trustworthy: what it measured, and why it is not applied.
+    Untrusted {
+        summary: Box<CorrectionSummary>,
+        reason: String,
+    },
+}
+
+impl From<SimulationError> for Rejected {
+    fn from(e: SimulationError) -> Self {
+        Rejected::Failed(e)
+    }
+}
+
+impl From<Rejected> for SimulationError {
+    fn from(r: Rejected) -> Self {
+        match r {
+            Rejected::Failed(e) => e,
+            Rejected::Untrusted { reason, .. } => SimulationError::Calibration(reason),
+        }
+    }
+}
+
+impl std::fmt::Display for Rejected {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Rejected::Failed(e) => write!(f, "{e}"),
+            Rejected::Untrusted { reason, .. } => write!(f, "{reason}"),
+        }
+    }
 }
 
 /// Calibrate on the true machine and return the believed config with the measured values applied.
@@ -43,20 +83,20 @@ pub fn calibrate_and_correct(
     believed: &MachineConfig,
     actual: &Machine,
     seed: u64,
-) -> Result<(MachineConfig, CorrectionSummary), SimulationError> {
+) -> Result<(MachineConfig, CorrectionSummary), Rejected> {
     let (params, summary) = match (&believed.params, actual.params()) {
         (MachineParams::Polar(b), MachineParams::Polar(a)) => {
             let (p, s) = correct_polar(b, a, actual, seed)?;
             (MachineParams::Polar(p), s)
         }
         (MachineParams::Scara(b), MachineParams::Scara(a)) => {
-            let (p, s) = correct_scara(b, a, actual, seed)?;
+            let (p, s) = correct_scara(believed, b, a, actual, seed)?;
             (MachineParams::Scara(p), s)
         }
         _ => {
-            return Err(SimulationError::Calibration(
+            return Err(Rejected::Failed(SimulationError::Calibration(
                 "automatic calibration exists for polar and SCARA machines of the same kind".into(),
-            ));
+            )));
         }
     };
     let mut corrected = believed.clone();
@@ -116,6 +156,7 @@ fn correct_polar(
             ),
         ],
         rms,
+        notes: Vec::new(),
     };
     Ok((corrected, summary))
 }
@@ -129,62 +170,63 @@ fn value(name: &str, believed: f64, measured: f64, actual: f64) -> CorrectedValu
     }
 }
 
-/// Motor angles of an 11×11 grid of joint poses (q1 90° ± 60°, q2 40°…130°) on the believed machine.
-fn calibration_poses(g: &ScaraGeometry) -> Vec<(f64, f64)> {
-    let mut poses = Vec::new();
-    for i in 0..11 {
-        let q1 = (-60.0 + 12.0 * f64::from(i)).to_radians() + 0.5 * PI;
-        for k in 0..11 {
-            let q2 = (40.0 + 9.0 * f64::from(k)).to_radians();
-            poses.push((
-                q1 + g.shoulder_zero,
-                q2 + g.elbow_coupling * q1 + g.elbow_zero,
-            ));
-        }
-    }
-    poses
-}
-
-/// Standard deviation of the simulated pattern measurement (mm).
-pub const PATTERN_NOISE: f64 = 0.02;
+/// Standard deviation of the simulated pattern measurement (mm): calipers, `calibrate scara`'s default method.
+pub const PATTERN_NOISE: f64 = CALIPERS.noise;
 
 fn correct_scara(
+    believed_config: &MachineConfig,
     believed: &ScaraParams,
     truth: &ScaraParams,
     actual: &Machine,
     seed: u64,
-) -> Result<(ScaraParams, CorrectionSummary), SimulationError> {
-    if believed.frame != ScaraFrame::Standard || truth.frame != ScaraFrame::Standard {
-        return Err(SimulationError::Calibration(
-            "SCARA identification runs in the standard frame; X-SCARA frame machines are not supported".into(),
-        ));
-    }
-    let start = ScaraGeometry::from(believed);
+) -> Result<(ScaraParams, CorrectionSummary), Rejected> {
     let mut rng = StdRng::seed_from_u64(seed);
-    let noise =
-        Normal::new(0.0, PATTERN_NOISE).map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let scale: Vec<f64> = actual
-        .motor_errors()
+    let measured = print_and_measure(believed_config, actual, CALIPERS, &mut rng)?;
+    let (data, frame) = (&measured.data, measured.pattern.frame);
+    let start = ScaraGeometry::from(believed);
+    let fit = identify_in_frame(data, &start, frame)
+        .map_err(|e| SimulationError::Calibration(e.to_string()))?;
+    let verdict = judge(data, &fit, &start, frame, CALIPERS.noise);
+    let g = fit.geometry;
+    let t = ScaraGeometry::from(truth);
+    let values = calibrate::scara::PARAM_NAMES
         .iter()
-        .map(|m| 1.0 + m.scale_error)
+        .zip(start.to_array())
+        .zip(g.to_array())
+        .zip(t.to_array())
+        .map(|(((n, b), m), a)| value(n, b, m, a))
         .collect();
-    let mut data = Vec::new();
-    for (line, (a, b)) in calibration_poses(&start).into_iter().enumerate() {
-        let motors = [a * scale[0], b * scale[1], 0.0];
-        let p = actual
-            .kinematics()
-            .forward(&motors)
-            .map_err(|e| SimulationError::Calibration(e.to_string()))?;
-        data.push(Measurement {
-            motor_a: a,
-            motor_b: b,
-            x: p[0] + noise.sample(&mut rng),
-            y: p[1] + noise.sample(&mut rng),
-            line: line + 1,
+    let judged = if verdict.trustworthy {
+        "trustworthy".to_string()
+    } else {
+        format!("not trustworthy: {}", verdict.problems.join("; "))
+    };
+    let summary = CorrectionSummary {
+        method: format!(
+            "SCARA identification from the {} crosses of the default pattern, printed by the machine as built and \
+             measured where their strokes cross",
+            data.len()
+        ),
+        values,
+        rms: fit.rms,
+        notes: vec![
+            format!(
+                "crosses measured as with calipers: {} mm noise (1σ per coordinate), read to {} mm",
+                CALIPERS.noise, CALIPERS.resolution
+            ),
+            format!(
+                "verdict at {} mm: chi-square {:.1} of at most {:.1} ({} degrees of freedom): {judged}",
+                verdict.noise, verdict.chi_square, verdict.chi_square_limit, verdict.dof
+            ),
+        ],
+    };
+    if !verdict.trustworthy {
+        let reason = format!("the pattern's fit is {judged}; a user would not apply it");
+        return Err(Rejected::Untrusted {
+            summary: Box::new(summary),
+            reason,
         });
     }
-    let fit = identify(&data, &start).map_err(|e| SimulationError::Calibration(e.to_string()))?;
-    let g = fit.geometry;
     let corrected = ScaraParams {
         link1_length: g.link1_length,
         link2_length: g.link2_length,
@@ -195,23 +237,6 @@ fn correct_scara(
         elbow_coupling: g.elbow_coupling,
         ecr: None,
         ..believed.clone()
-    };
-    let t = ScaraGeometry::from(truth);
-    let names = calibrate::scara::PARAM_NAMES;
-    let values = names
-        .iter()
-        .zip(start.to_array())
-        .zip(g.to_array())
-        .zip(t.to_array())
-        .map(|(((n, b), m), a)| value(n, b, m, a))
-        .collect();
-    let summary = CorrectionSummary {
-        method: format!(
-            "SCARA identification from {} measured pattern crosses ({PATTERN_NOISE} mm noise)",
-            data.len()
-        ),
-        values,
-        rms: fit.rms,
     };
     Ok((corrected, summary))
 }

@@ -121,7 +121,8 @@ pub struct HallBedConfig {
     /// Sensor above the magnets' top faces (mm).
     pub sensor_height: f64,
     /// Where the sensor really reads relative to the nozzle, along and across the arm (mm): its mounting
-    /// offset plus `height · tan(tilt)`. A scan measures the sensor, so this adds to the `dx`, `dy` it finds.
+    /// offset plus, for a tilt α, `h · tan(α) / 4` (a dipole's peak, `h` from the magnet's centre). A scan measures
+    /// the sensor, so this adds to the `dx`, `dy` it finds.
     pub sensor_offset: [f64; 2],
     pub sensor: Ky024,
     /// True `dx` (arm zero along the arm, mm) and `dy` (lateral, mm).

@@ -5,6 +5,7 @@
 pub mod hall;
 
 pub mod correction;
+pub mod crosses;
 pub mod error;
 pub mod features;
 pub mod machine;

@@ -107,6 +107,9 @@ pub struct Report {
     pub before: RunReport,
     pub correction: Option<CorrectionSummary>,
     pub after: Option<RunReport>,
+    /// Why a correction was asked for and no "after" simulation could be made (the calibration failed, its fit
+    /// was not trustworthy, or the corrected machine could not plan the print); `None` otherwise.
+    pub after_missing: Option<String>,
 }
 
 impl Report {
@@ -135,9 +138,15 @@ impl Report {
                 );
             }
             let _ = writeln!(s, "  fit rms {:.4} mm", c.rms);
+            for note in &c.notes {
+                let _ = writeln!(s, "  {note}");
+            }
         }
         if let Some(after) = &self.after {
             run_text(&mut s, "after correction", after);
+        }
+        if let Some(why) = &self.after_missing {
+            let _ = writeln!(s, "\n== after correction ==\nnot simulated: {why}");
         }
         s
     }
@@ -317,23 +326,38 @@ pub fn write_report(
     before: &Simulation,
     after: Option<&Simulation>,
 ) -> Result<(), SimulationError> {
+    write_pictures(dir, Stage::Before, before)?;
+    if let Some(after) = after {
+        write_pictures(dir, Stage::After, after)?;
+    }
+    write_numbers(dir, report)
+}
+
+/// Write `report.txt` and `report.json` (the pictures are [`write_pictures`]'s: a caller that streams drops each
+/// simulation's path once its pictures are drawn).
+pub fn write_numbers(dir: &Path, report: &Report) -> Result<(), SimulationError> {
     std::fs::create_dir_all(dir).map_err(|e| output_error(dir, &e))?;
     write_file(&dir.join("report.txt"), report.text().as_bytes())?;
     let json = serde_json::to_string_pretty(report).map_err(|e| output_error(dir, &e))?;
-    write_file(&dir.join("report.json"), json.as_bytes())?;
-    write_pictures(dir, "", "as configured", before)?;
-    if let Some(after) = after {
-        write_pictures(dir, "-after", "after correction", after)?;
-    }
-    Ok(())
+    write_file(&dir.join("report.json"), json.as_bytes())
 }
 
-fn write_pictures(
-    dir: &Path,
-    suffix: &str,
-    title: &str,
-    sim: &Simulation,
-) -> Result<(), SimulationError> {
+/// Which simulation a picture shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// As configured: `overlay.png`, `overlay.svg`, `deviation-map.png`.
+    Before,
+    /// After correction: the same names with `-after`.
+    After,
+}
+
+/// The overlay and deviation map of one simulation, into `dir`.
+pub fn write_pictures(dir: &Path, stage: Stage, sim: &Simulation) -> Result<(), SimulationError> {
+    let (suffix, title) = match stage {
+        Stage::Before => ("", "as configured"),
+        Stage::After => ("-after", "after correction"),
+    };
+    std::fs::create_dir_all(dir).map_err(|e| output_error(dir, &e))?;
     let overlay = overlay_figure(&sim.replay.path, title);
     overlay.write_png(&dir.join(format!("overlay{suffix}.png")))?;
     overlay.write_svg(&dir.join(format!("overlay{suffix}.svg")))?;

@@ -11,7 +11,7 @@ use config::MachineConfig;
 use std::io::BufRead;
 
 pub use crate::correction::{
-    CorrectedValue, CorrectionSummary, PATTERN_NOISE, calibrate_and_correct,
+    CorrectedValue, CorrectionSummary, PATTERN_NOISE, Rejected, calibrate_and_correct,
 };
 pub use crate::simulation::{Simulation, simulate};
 pub use crate::testprint::test_print_gcode;
@@ -159,6 +159,7 @@ pub fn write_closed_loop_report(
         before: RunReport::new(&run.before),
         correction: Some(run.correction.clone()),
         after: Some(RunReport::new(&run.after)),
+        after_missing: None,
     };
     write_report(out_dir, &report, &run.before, Some(&run.after))?;
     Ok(report)

@@ -116,6 +116,7 @@ pub(super) fn assemble(
         scan_time,
         sensor_reads,
         method: params.method,
+        tilt: None,
     })
 }
 

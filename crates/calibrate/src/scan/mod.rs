@@ -32,6 +32,7 @@
 //! - `peaks`: one magnet's centre from sensor profiles or the thesis' comparator grid.
 //! - `fit`: detections → pair offsets, robust combination, magnet map, flags ([`centre_from_detections`]).
 //! - `result`: the result ([`CentreResult`]) and its JSON file; `detections`: the detections CSV file.
+//! - `tilt`: the sensor's tilt measured by a second scan at another height and removed ([`remove_tilt`]).
 //! - `error`: [`ScanError`].
 
 mod detections;
@@ -42,6 +43,7 @@ mod params;
 mod peaks;
 mod result;
 mod search;
+mod tilt;
 
 pub use detections::{
     DETECTIONS_HEADER, DETECTIONS_PREAMBLE, DetectionSlots, parse_detections, write_detections,
@@ -52,5 +54,6 @@ pub use fit::{centre_from_detections, centre_from_ring, pair_offsets};
 pub use hardware::{ScanHardware, trapezoid_time};
 pub use params::{PeakMethod, ScanParams};
 pub(crate) use peaks::parabola_vertex;
-pub use result::{CentreResult, Detection, MagnetMapPlot, MagnetRecord};
+pub use result::{CentreResult, Detection, MagnetMapPlot, MagnetRecord, TiltCorrection};
 pub use search::scan_centre;
+pub use tilt::{remove_tilt, with_tilt_removed};

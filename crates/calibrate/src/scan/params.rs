@@ -57,8 +57,9 @@ pub struct ScanParams {
     pub method: PeakMethod,
     /// How well the Hall sensor's axis is known to sit on the nozzle (mm, 1σ per direction). The scan finds
     /// where the *sensor* reads each magnet's peak; a sensor mounted beside the nozzle, or tilted by `α` at
-    /// height `h` (it then reads a magnet `h·tan α` away), shifts `dx` and `dy` by exactly that offset, and no
-    /// scan can see it. It is added to the reported uncertainty.
+    /// height `h` (it then reads a magnet beside it: `h·tan α / 4` in a dipole's field, `h` from the magnet's
+    /// centre), shifts `dx` and `dy` by exactly that offset, and no single scan can see it (a second scan higher
+    /// up measures a tilt: [`super::remove_tilt`]). It is added to the reported uncertainty.
     pub sensor_alignment: f64,
     /// A magnet whose peak field differs from the ring's median by more than this fraction is flagged (a
     /// wrong, damaged or sunk magnet).

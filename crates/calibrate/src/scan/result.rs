@@ -68,6 +68,10 @@ pub struct CentreResult {
     pub scan_time: f64,
     pub sensor_reads: usize,
     pub method: PeakMethod,
+    /// The sensor's tilt measured by a second scan higher up and removed from the offsets above
+    /// ([`super::remove_tilt`]); `None` for a single scan, whose offsets carry any tilt's bias.
+    #[serde(default)]
+    pub tilt: Option<TiltCorrection>,
 }
 
 /// Plain data for a picture of the magnet map: points, the fitted ring, residual vectors.
@@ -146,4 +150,24 @@ fn file_error(path: &Path, why: &dyn std::fmt::Display) -> ScanError {
         path: path.display().to_string(),
         message: why.to_string(),
     }
+}
+
+/// The offsets with the sensor's tilt removed, and what was removed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TiltCorrection {
+    /// `dx` and `dy` (mm) with the tilt's bias removed.
+    pub arm_zero_offset: f64,
+    pub arm_lateral_offset: f64,
+    /// 1σ of `dx` and `dy` from the two scans' own scatter, carried through the extrapolation (mm).
+    pub sigma_scan: [f64; 2],
+    /// 1σ with the sensor's mounting alignment added (mm).
+    pub sigma: [f64; 2],
+    /// The bias the tilt put into the lower scan's `dx`, `dy` (mm), removed.
+    pub bias: [f64; 2],
+    /// Distance from the sensor to the magnets' centres at the lower scan (mm), from the peak fields.
+    pub distance: f64,
+    /// How far the nozzle was raised for the second scan (mm).
+    pub raise: f64,
+    /// The tilt that bias stands for in a dipole's field (degrees, `tan α = 4·|bias| / distance`).
+    pub tilt_deg: f64,
 }

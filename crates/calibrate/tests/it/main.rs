@@ -6,3 +6,4 @@ mod circle_fits;
 mod scara_ident;
 mod scara_pattern;
 mod sweep_scan;
+mod tilt_scan;

@@ -32,11 +32,19 @@ pub struct CentreArgs {
     /// itself has turned by −θ). A log of the physical rotation must be negated first.
     #[arg(long, value_name = "CSV")]
     pub scan: Option<PathBuf>,
+    /// The same ring scanned again with the nozzle raised by `--raise` mm (a detections file with its `peak_mt`
+    /// column): a tilted sensor's bias grows with its height, so the two scans measure the tilt and remove it.
+    #[arg(long, value_name = "CSV", requires_all = ["scan", "raise"])]
+    pub scan_raised: Option<PathBuf>,
+    /// How much higher the nozzle was for `--scan-raised` (mm).
+    #[arg(long, value_name = "MM", requires = "scan_raised")]
+    pub raise: Option<f64>,
     /// Also write the detections as such a CSV (its header comment states the sign); `-` for standard output.
     #[arg(long, value_name = "CSV")]
     pub save_scan: Option<PathBuf>,
-    /// How well the sensor's axis is known to sit on the nozzle (mm, 1σ): a sensor beside the nozzle or
-    /// tilted shifts dx and dy by that much and no scan can see it; it is added to the reported uncertainty.
+    /// How well the sensor's axis is known to sit on the nozzle (mm, 1σ): a sensor beside the nozzle (or tilted,
+    /// without `--scan-raised`) shifts dx and dy by that much and no scan can see it; it is added to the reported
+    /// uncertainty.
     #[arg(long, default_value_t = 0.05, value_name = "MM")]
     pub sensor_alignment: f64,
     /// Magnets on the bed rim: the ring's size (default 16 for `--simulate`; for `--scan`, the file's `magnets`
@@ -176,7 +184,7 @@ fn centre_from_file(args: &CentreArgs, path: &Path) -> miette::Result<calibrate:
 
 fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
     let (result, truth) = if let Some(path) = &args.scan {
-        (centre_from_file(&args, path)?, None)
+        (tilt_removed(&args, centre_from_file(&args, path)?)?, None)
     } else if args.simulate {
         let params = scan_params(&args, args.magnets.unwrap_or(SIMULATED_MAGNETS));
         let (result, truth) = simulate_scan(&simulated_bed(&args)?, &params)?;
@@ -222,6 +230,19 @@ fn centre(args: CentreArgs) -> miette::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `result` with the sensor's tilt removed when a raised scan is given.
+fn tilt_removed(
+    args: &CentreArgs,
+    result: calibrate::CentreResult,
+) -> miette::Result<calibrate::CentreResult> {
+    let (Some(path), Some(raise)) = (&args.scan_raised, args.raise) else {
+        return Ok(result);
+    };
+    let high = centre_from_file(args, path)?;
+    calibrate::scan::with_tilt_removed(result, &high, raise)
+        .map_err(|e| miette::miette!("{}: {e}", path.display()))
 }
 
 /// The simulated bed of the arguments.

@@ -4,7 +4,8 @@
 //! calibrate the simulated machine, apply the result to the believed config and simulate again.
 
 use crate::{diag, input};
-use sim::scenario::{Simulation, calibrate_and_correct};
+use sim::report::Stage;
+use sim::scenario::{CorrectionSummary, Rejected, Simulation, calibrate_and_correct};
 use sim::{Machine, ReplayOptions, Report, RunReport, SimulationError};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -35,6 +36,11 @@ pub struct Args {
     pub seed: u64,
 }
 
+/// Exit status of a `--correct` run whose report holds the "before" simulation but no "after": the calibration
+/// failed, its fit was not trustworthy, or the corrected machine cannot plan the print (the reason is in the
+/// report and on standard error).
+pub const NO_AFTER_EXIT: u8 = 3;
+
 pub fn run(args: Args) -> miette::Result<ExitCode> {
     if args.correct && args.file == Path::new("-") {
         return Err(miette::miette!(
@@ -44,29 +50,35 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
     let believed = load_config(&args.config)?;
     let actual_cfg = load_config(&args.actual)?;
     let actual = Machine::from_config(&actual_cfg).map_err(|e| report_error(&e))?;
+    // The G-code is an input too: no report file may replace it (checked before anything is written).
+    crate::output::register_input(&args.file);
+    crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
+    for name in sim::report::REPORT_FILES {
+        crate::output::refuse_input(&args.out.join(name)).map_err(crate::cmd::plain)?;
+    }
     let options = ReplayOptions::default();
-    let before = simulate_file(&believed, &actual, &args.file, &options)?;
-    let (correction, after) = if args.correct {
-        let (corrected, summary) =
-            calibrate_and_correct(&believed, &actual, args.seed).map_err(|e| report_error(&e))?;
-        let after = simulate_file(&corrected, &actual, &args.file, &options)?;
-        (Some(summary), Some(after))
+    // Each simulation's pictures are drawn as soon as it ends and its path dropped: one path in memory at a time.
+    let before = {
+        let run = simulate_file(&believed, &actual, &args.file, &options)?;
+        sim::report::write_pictures(&args.out, Stage::Before, &run)
+            .map_err(|e| report_error(&e))?;
+        RunReport::new(&run)
+    };
+    let (correction, after, after_missing) = if args.correct {
+        corrected_run(&args, &believed, &actual, &options)?
     } else {
-        (None, None)
+        (None, None, None)
     };
     let report = Report {
         believed_config: args.config.display().to_string(),
         actual_config: args.actual.display().to_string(),
         gcode: args.file.display().to_string(),
-        before: RunReport::new(&before),
+        before,
         correction,
-        after: after.as_ref().map(RunReport::new),
+        after,
+        after_missing,
     };
-    crate::output::directory_output(&args.out).map_err(crate::cmd::plain)?;
-    for name in sim::report::REPORT_FILES {
-        crate::output::refuse_input(&args.out.join(name)).map_err(crate::cmd::plain)?;
-    }
-    sim::write_report(&args.out, &report, &before, after.as_ref()).map_err(|e| report_error(&e))?;
+    sim::report::write_numbers(&args.out, &report).map_err(|e| report_error(&e))?;
     let text = if args.json {
         let mut json = serde_json::to_string_pretty(&report).map_err(|e| miette::miette!("{e}"))?;
         json.push('\n');
@@ -79,7 +91,51 @@ pub fn run(args: Args) -> miette::Result<ExitCode> {
         )
     };
     print_stdout(&text)?;
+    if let Some(why) = &report.after_missing {
+        crate::errln!("warning: the correction was not simulated: {why}");
+        return Ok(ExitCode::from(NO_AFTER_EXIT));
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Calibrate the simulated machine, apply the result and simulate again, its pictures written: the calibration's
+/// summary, the "after" numbers, or why there are none.
+fn corrected_run(
+    args: &Args,
+    believed: &config::MachineConfig,
+    actual: &Machine,
+    options: &ReplayOptions,
+) -> miette::Result<(Option<CorrectionSummary>, Option<RunReport>, Option<String>)> {
+    let (corrected, summary) = match calibrate_and_correct(believed, actual, args.seed) {
+        Ok(done) => done,
+        Err(Rejected::Failed(e)) => return Ok((None, None, Some(e.to_string()))),
+        Err(Rejected::Untrusted { summary, reason }) => {
+            return Ok((Some(*summary), None, Some(reason)));
+        }
+    };
+    let after = match simulate_gcode(&corrected, actual, &args.file, options)? {
+        Ok(after) => after,
+        Err(e) => {
+            let why = format!(
+                "the corrected machine cannot run the print: {}",
+                error_at(&args.file, &e)
+            );
+            return Ok((Some(summary), None, Some(why)));
+        }
+    };
+    sim::report::write_pictures(&args.out, Stage::After, &after).map_err(|e| report_error(&e))?;
+    Ok((Some(summary), Some(RunReport::new(&after)), None))
+}
+
+/// A simulation error as one line, at the G-code file's line and column where it has one.
+fn error_at(file: &Path, e: &SimulationError) -> String {
+    match e {
+        SimulationError::Plan(p) => {
+            let (line, column) = p.place();
+            format!("{}:{line}:{column}: {}", file.display(), p.message())
+        }
+        other => other.to_string(),
+    }
 }
 
 /// Print to standard output; a closed pipe (`| head`) is not an error, the report files are written.
@@ -105,16 +161,27 @@ fn simulate_file(
     path: &Path,
     options: &ReplayOptions,
 ) -> miette::Result<Simulation> {
-    let (reader, name, bar) = input::open_gcode(path).map_err(crate::cmd::plain)?;
-    let result = sim::simulate(believed, actual, reader, &name, options);
-    bar.finish_and_clear();
-    result.map_err(|e| match e {
+    simulate_gcode(believed, actual, path, options)?.map_err(|e| match e {
         // A planning error names the G-code file, line and column.
         SimulationError::Plan(plan @ printjob::PipelineError::Plan(_)) => {
             diag::pipeline_error(path, plan)
         }
         other => report_error(&other),
     })
+}
+
+/// One simulation of the G-code file: the outer error when the file cannot be opened, the inner one when the
+/// simulation fails.
+fn simulate_gcode(
+    believed: &config::MachineConfig,
+    actual: &Machine,
+    path: &Path,
+    options: &ReplayOptions,
+) -> miette::Result<Result<Simulation, SimulationError>> {
+    let (reader, name, bar) = input::open_gcode(path).map_err(crate::cmd::plain)?;
+    let result = sim::simulate(believed, actual, reader, &name, options);
+    bar.finish_and_clear();
+    Ok(result)
 }
 
 /// Diagnostics with the source line where the error has one.

@@ -309,3 +309,86 @@ fn a_centre_scan_file_flags_a_missing_last_magnet() {
         "{err}"
     );
 }
+
+/// A detections file of a ring of 16 magnets on 100 mm seen by a sensor whose reading point sits `shift` (mm,
+/// along and across the arm) from the nozzle, with peak field `peak_mt`: each magnet's arm and bed readings from
+/// the polar geometry itself (the sensor at (r + dx + sx, dy + sy) reads the bed point Rot(θ)·that).
+fn tilted_detections(offset: [f64; 2], shift: [f64; 2], peak_mt: f64) -> String {
+    let (ex, ey) = (offset[0] + shift[0], offset[1] + shift[1]);
+    let mut text = String::from("magnets,16\nmagnet,side,arm_mm,bed_deg,peak_mt\n");
+    for k in 0..16 {
+        let a = std::f64::consts::TAU * f64::from(k) / 16.0;
+        let rho = 100.0 + 0.05 * f64::from(k % 3);
+        let along = (rho * rho - ey * ey).sqrt();
+        for (side, r) in [("near", along - ex), ("far", -along - ex)] {
+            let theta = a - ey.atan2(ex + r);
+            text += &format!("{k},{side},{r:.6},{:.6},{peak_mt:.3}\n", theta.to_degrees());
+        }
+    }
+    text
+}
+
+/// Two scans 2 mm apart of a sensor tilted 2°: a dipole's peak moves h·tan α / 4 with the sensor's distance h
+/// to the magnets (5.5 mm, then 7.5 mm) and its peak field falls as 1/h³. `--scan-raised` removes the bias the
+/// single scan keeps.
+#[test]
+fn a_second_scan_higher_up_removes_the_sensors_tilt() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (truth, slope) = ([0.8, -0.6], 2f64.to_radians().tan() / 4.0);
+    let (h_low, h_high) = (5.5, 7.5);
+    let towards = [30f64.to_radians().cos(), 30f64.to_radians().sin()];
+    for (name, h) in [("low.csv", h_low), ("high.csv", h_high)] {
+        let shift = [slope * h * towards[0], slope * h * towards[1]];
+        let peak = 40.0 * (h_low / h).powi(3);
+        std::fs::write(dir.path().join(name), tilted_detections(truth, shift, peak)).expect("scan");
+    }
+    let single = [
+        "calibrate",
+        "centre",
+        "--scan",
+        "low.csv",
+        "--json",
+        "-o",
+        "one.json",
+    ];
+    let (status, out, err) = run(dir.path(), &single);
+    assert_eq!(status, Some(0), "{err}");
+    let one: serde_json::Value = serde_json::from_str(&out).expect("json");
+    let off = |v: &serde_json::Value| {
+        let d = [
+            v["arm_zero_offset"].as_f64().expect("dx"),
+            v["arm_lateral_offset"].as_f64().expect("dy"),
+        ];
+        (d[0] - truth[0]).hypot(d[1] - truth[1])
+    };
+    assert!((off(&one) - slope * h_low).abs() < 1e-3, "{}", off(&one));
+    let two = [
+        "calibrate",
+        "centre",
+        "--scan",
+        "low.csv",
+        "--scan-raised",
+        "high.csv",
+        "--raise",
+        "2",
+        "--json",
+    ];
+    let (status, out, err) = run(dir.path(), &two);
+    assert_eq!(status, Some(0), "{err}");
+    let fixed: serde_json::Value = serde_json::from_str(&out).expect("json");
+    assert!(off(&fixed) < 1e-3, "{}", off(&fixed));
+    let tilt = &fixed["tilt"];
+    assert!(
+        (tilt["distance"].as_f64().expect("distance") - h_low).abs() < 0.01,
+        "{tilt}"
+    );
+    assert!(
+        (tilt["tilt_deg"].as_f64().expect("tilt") - 2.0).abs() < 0.01,
+        "{tilt}"
+    );
+    // The text says what was removed; the raise must come with the raised scan.
+    let (_, text, _) = run(dir.path(), &two[..two.len() - 1]);
+    assert!(text.contains("sensor tilt removed"), "{text}");
+    let (status, _, err) = run(dir.path(), &two[..6]);
+    assert_ne!(status, Some(0), "{err}");
+}

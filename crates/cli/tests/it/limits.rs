@@ -267,6 +267,11 @@ fn spiral_vase(turns: u32) -> String {
 
 /// Peak RSS (kB), the layer count and the size of report.txt of `simulate` on a spiral of `turns` turns.
 fn simulate_spiral(turns: u32) -> (u64, u64, u64) {
+    simulate_spiral_with(turns, &[])
+}
+
+/// [`simulate_spiral`] with `extra` arguments.
+fn simulate_spiral_with(turns: u32, extra: &[&str]) -> (u64, u64, u64) {
     let scratch = tempfile::tempdir().expect("temp dir");
     let input = scratch.path().join("vase.gcode");
     std::fs::write(&input, spiral_vase(turns)).expect("write input");
@@ -280,6 +285,7 @@ fn simulate_spiral(turns: u32) -> (u64, u64, u64) {
         .arg(&input)
         .arg("-o")
         .arg(scratch.path().join("report"))
+        .args(extra)
         // Nothing read from the child while it runs: its output must not fill a pipe.
         .stdout(Stdio::null())
         .stderr(std::fs::File::create(scratch.path().join("stderr.txt")).expect("stderr file"))
@@ -324,5 +330,30 @@ fn simulate_memory_and_report_stay_flat_on_a_long_spiral() {
     assert!(
         large_text <= small_text + small_text / 4,
         "{small_text} B → {large_text} B"
+    );
+}
+
+/// `--correct` simulates twice, one path in memory at a time: its peak stays within a third more than one
+/// simulation's (the rest is the allocator keeping the first simulation's freed memory), and grows no more
+/// with a longer print than one simulation does.
+#[test]
+fn simulate_correct_holds_one_simulation_at_a_time() {
+    let (plain, _, _) = simulate_spiral(300);
+    let (corrected, layers, _) = simulate_spiral_with(300, &["--correct"]);
+    let (long, _, _) = simulate_spiral_with(1200, &["--correct"]);
+    println!(
+        "spiral 300 turns: peak {:.1} MB, with --correct {:.1} MB; 1200 turns with --correct {:.1} MB",
+        plain as f64 / 1024.0,
+        corrected as f64 / 1024.0,
+        long as f64 / 1024.0
+    );
+    assert!(layers.abs_diff(300) <= 1);
+    assert!(
+        corrected <= plain + plain / 3,
+        "{plain} kB → {corrected} kB"
+    );
+    assert!(
+        long <= corrected + corrected / 4,
+        "{corrected} kB → {long} kB"
     );
 }

@@ -15,4 +15,5 @@ mod invariants;
 mod json;
 mod limits;
 mod output;
+mod simulate;
 mod structure;

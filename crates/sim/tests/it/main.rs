@@ -5,5 +5,6 @@
 mod acceptance;
 mod common;
 mod motor_model;
+mod pattern_crosses;
 mod report_files;
 mod spiral_vase;

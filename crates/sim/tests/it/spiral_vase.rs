@@ -66,6 +66,7 @@ fn a_spiral_vase_has_one_layer_per_turn_and_a_bounded_report() {
         before: RunReport::new(&sim),
         correction: None,
         after: None,
+        after_missing: None,
     };
     sim::write_report(dir.path(), &report, &sim, None).expect("report written");
     let text = std::fs::read_to_string(dir.path().join("report.txt")).expect("text");

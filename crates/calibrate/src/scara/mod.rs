@@ -432,15 +432,7 @@ pub fn identify_in_frame(
     if frame == ScaraFrame::Standard {
         return identify(data, start);
     }
-    let swapped: Vec<Measurement> = data
-        .iter()
-        .map(|m| Measurement {
-            x: m.y,
-            y: m.x,
-            ..*m
-        })
-        .collect();
-    let mut fit = identify(&swapped, &swap_offsets(start))?;
+    let mut fit = identify(&swapped_xy(data), &swap_offsets(start))?;
     fit.geometry = swap_offsets(&fit.geometry);
     fit.sigma.swap(2, 3);
     fit.covariance.swap(2, 3);
@@ -460,6 +452,17 @@ pub fn identify_in_frame(
         }
     }
     Ok(fit)
+}
+
+/// The measurements with their x and y exchanged (an X-SCARA's frame, or swapped columns).
+pub(crate) fn swapped_xy(data: &[Measurement]) -> Vec<Measurement> {
+    data.iter()
+        .map(|m| Measurement {
+            x: m.y,
+            y: m.x,
+            ..*m
+        })
+        .collect()
 }
 
 /// The geometry with its offsets exchanged (between the printer's X/Y and the X-SCARA arm frame).

@@ -185,15 +185,7 @@ fn causes(
             }
         }
     }
-    let swapped: Vec<Measurement> = data
-        .iter()
-        .map(|m| Measurement {
-            x: m.y,
-            y: m.x,
-            ..*m
-        })
-        .collect();
-    if passes(&swapped, start, frame, noise) {
+    if passes(&super::swapped_xy(data), start, frame, noise) {
         out.push(
             "the x_mm and y_mm columns are swapped, or the file's frame is not the machine's (X-SCARA's frame swaps \
              them): with x and y exchanged the poses fit within the noise"

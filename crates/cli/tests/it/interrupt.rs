@@ -100,27 +100,9 @@ fn check_stopped_by(args: &[&std::ffi::OsStr], stream: CircleStream, out: &Path,
     assert!(folders.is_empty(), "an interrupted run left {folders:?}");
 }
 
-/// SIGTERM (a service manager, `kill`) stops a run as Ctrl-C does: no temporary file, no empty step folder.
-#[test]
-fn sigterm_during_run_leaves_no_output() {
-    let scratch = tempfile::tempdir().expect("temp dir");
-    let out = scratch.path().join("out");
-    std::fs::create_dir_all(&out).expect("output folder");
-    let config = example_machine("cartesian");
-    let steps = out.join("steps");
-    let args: Vec<&std::ffi::OsStr> = vec![
-        "run".as_ref(),
-        "-c".as_ref(),
-        config.as_os_str(),
-        "-".as_ref(),
-        "--steps".as_ref(),
-        steps.as_os_str(),
-    ];
-    check_stopped_by(&args, CircleStream::new(), &out, "TERM");
-}
-
-#[test]
-fn sigint_during_run_leaves_no_output() {
+/// `run` of an endless stream with step files and the moves CSV into a fresh `out` folder, stopped by `signal`:
+/// nothing left behind, not even the step folder.
+fn stream_run_stopped_by(signal: &str) {
     let scratch = tempfile::tempdir().expect("temp dir");
     let out = scratch.path().join("out");
     std::fs::create_dir_all(&out).expect("output folder");
@@ -137,7 +119,18 @@ fn sigint_during_run_leaves_no_output() {
         "--moves".as_ref(),
         moves.as_os_str(),
     ];
-    check_interrupted(&args, CircleStream::new(), &out);
+    check_stopped_by(&args, CircleStream::new(), &out, signal);
+}
+
+#[test]
+fn sigint_during_run_leaves_no_output() {
+    stream_run_stopped_by("INT");
+}
+
+/// SIGTERM (a service manager, `kill`) stops a run as Ctrl-C does.
+#[test]
+fn sigterm_during_run_leaves_no_output() {
+    stream_run_stopped_by("TERM");
 }
 
 #[test]

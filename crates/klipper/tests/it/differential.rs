@@ -167,68 +167,51 @@ fn refusals_agree_with_the_host() {
     }
 }
 
+/// `gcode` on the polar example: `check` refuses it first at `line`, and Klipper with the plug-in stops saying
+/// `host_says`.
+fn refused_alike(test: &str, gcode: &str, line: u64, host_says: &str) {
+    let Some(hosts) = Hosts::get(test) else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cfg = example(dir.path(), "polar");
+    let input = write(dir.path(), "input.gcode", gcode);
+    let (cfg_s, input_s) = (cfg.to_string_lossy(), input.to_string_lossy());
+    let check = cli_json(&["check", "-c", &cfg_s, &input_s, "--json"]);
+    let problems = check["problems"].as_array().expect("problems");
+    let error = problems
+        .iter()
+        .find(|p| p["severity"] == "error")
+        .expect("a refusal");
+    assert_eq!(error["line"].as_u64(), Some(line), "{error}");
+    let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join("out"));
+    assert!(run.log.contains(host_says), "{}", tail(&run.log, 10));
+}
+
 /// An arc given by its radius: Klipper refuses it ("G2/G3 does not support R moves"), and `check` refuses the same
 /// line, where jointspace's reader would otherwise take it as Marlin does.
 #[test]
 fn radius_arcs_are_refused_as_klipper_refuses_them() {
-    let Some(hosts) = Hosts::get("radius_arcs_are_refused_as_klipper_refuses_them") else {
-        return;
-    };
-    let dir = tempfile::tempdir().expect("temp dir");
     // The example has `[gcode_arcs]`: Klipper reads arcs, and refuses this one for its R.
-    let cfg = example(dir.path(), "polar");
     let gcode = "G28\nG1 X50 Y10 F3000\nG2 X60 Y20 R10 F3000\nG1 X40 Y10\n";
-    let input = write(dir.path(), "radius.gcode", gcode);
-    let check = cli_json(&[
-        "check",
-        "-c",
-        &cfg.to_string_lossy(),
-        &input.to_string_lossy(),
-        "--json",
-    ]);
-    let problems = check["problems"].as_array().expect("problems");
-    let error = problems
-        .iter()
-        .find(|p| p["severity"] == "error")
-        .expect("a refusal");
-    assert_eq!(error["line"].as_u64(), Some(3), "{error}");
-    let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join("out"));
-    assert!(
-        run.log.contains("G2/G3 does not support R moves"),
-        "{}",
-        tail(&run.log, 10)
+    refused_alike(
+        "radius_arcs_are_refused_as_klipper_refuses_them",
+        gcode,
+        3,
+        "G2/G3 does not support R moves",
     );
 }
 
 /// `SET_GCODE_OFFSET` shifts the G-code frame in Klipper; `check` applies it too, so a move the offset carries out
-/// of reach is refused at the same line by both (and `G28` restores the offset, not a `G92` one).
+/// of reach is refused at the same line by both.
 #[test]
 fn gcode_offsets_are_applied_as_klipper_applies_them() {
-    let Some(hosts) = Hosts::get("gcode_offsets_are_applied_as_klipper_applies_them") else {
-        return;
-    };
-    let dir = tempfile::tempdir().expect("temp dir");
-    let cfg = example(dir.path(), "polar");
     // The arm reaches 300 mm: with the offset, X20 is at 280 mm and X50 at 310 mm.
     let gcode = "G28\nG1 X50 Y10 F3000\nSET_GCODE_OFFSET X=260\nG1 X20 Y10\nG1 X50 Y10\n";
-    let input = write(dir.path(), "offset.gcode", gcode);
-    let check = cli_json(&[
-        "check",
-        "-c",
-        &cfg.to_string_lossy(),
-        &input.to_string_lossy(),
-        "--json",
-    ]);
-    let problems = check["problems"].as_array().expect("problems");
-    let error = problems
-        .iter()
-        .find(|p| p["severity"] == "error")
-        .expect("a refusal");
-    assert_eq!(error["line"].as_u64(), Some(5), "{error}");
-    let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join("out"));
-    assert!(
-        run.log.contains("Move out of range: X310.000 Y10.000"),
-        "{}",
-        tail(&run.log, 10)
+    refused_alike(
+        "gcode_offsets_are_applied_as_klipper_applies_them",
+        gcode,
+        5,
+        "Move out of range: X310.000 Y10.000",
     );
 }

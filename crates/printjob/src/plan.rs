@@ -85,10 +85,23 @@ pub fn plan_gcode<S: MoveSink>(
     source_name: &str,
     sink: S,
 ) -> Result<(S, PlanSummary), PipelineError> {
+    plan_gcode_observed(setup, input, source_name, sink, |_| {})
+}
+
+/// [`plan_gcode`], showing `observe` every command (metadata and pass-through commands included) before it is
+/// planned: for a breakdown of the planned time by what the file says between its moves.
+pub fn plan_gcode_observed<S: MoveSink>(
+    setup: &MachineSetup,
+    input: impl BufRead,
+    source_name: &str,
+    sink: S,
+    mut observe: impl FnMut(&gcode::Spanned<gcode::Command>),
+) -> Result<(S, PlanSummary), PipelineError> {
     let (mut commands, mut planner) = start(setup, input, source_name, sink);
     let mut block = 0u64;
     while let Some(command) = commands.next_command() {
         let command = command?;
+        observe(&command);
         // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
         let line_end_block =
             commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;

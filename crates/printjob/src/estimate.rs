@@ -67,7 +67,7 @@ pub struct Estimate {
     pub layers: Vec<Part>,
     pub features: Vec<Part>,
     pub limits: Vec<LimitCost>,
-    /// The first moves slowed hard, and how many in all.
+    /// The lines of the first moves slowed hard (each at its slowest), and how many moves in all.
     pub slowed: Vec<SlowLine>,
     pub slowed_total: u64,
     pub warnings: Vec<WarningLine>,
@@ -78,7 +78,7 @@ pub struct Estimate {
 }
 
 /// A source of the same G-code stream, once per planning pass.
-pub type Reopen<'a> = &'a dyn Fn() -> std::io::Result<Box<dyn BufRead>>;
+pub type Reopen<'a> = &'a dyn Fn() -> std::io::Result<Box<dyn BufRead + 'a>>;
 
 /// Plan the stream of `open` on `machine` (as `options` say) and break its time down. `wanted` says which
 /// commands' lines get their planned time in [`Estimate::marks`]. With motor limits, the stream is planned
@@ -196,20 +196,28 @@ impl Breakdown {
             layers: lost(self.layers, &unlimited.layers),
             features: lost(self.features, &unlimited.features),
             limits,
-            slowed: slow
-                .first
-                .iter()
-                .map(|s| SlowLine {
-                    line: s.origin,
-                    requested: s.requested,
-                    allowed: s.allowed,
-                })
-                .collect(),
+            slowed: slowed_lines(&slow.first),
             slowed_total: slow.total,
             warnings: warning_lines(&self.summary),
             marks: self.marks,
         }
     }
+}
+
+/// The slowed moves by line (a move cut into spans is slowed span by span): each line once, at its slowest.
+fn slowed_lines(moves: &[motion::SlowMove]) -> Vec<SlowLine> {
+    let mut lines: Vec<SlowLine> = Vec::new();
+    for s in moves {
+        match lines.last_mut() {
+            Some(last) if last.line == s.origin => last.allowed = last.allowed.min(s.allowed),
+            _ => lines.push(SlowLine {
+                line: s.origin,
+                requested: s.requested,
+                allowed: s.allowed,
+            }),
+        }
+    }
+    lines
 }
 
 /// What the reader has seen and the planned moves have not yet reached: where each part starts, and the lines
@@ -265,7 +273,8 @@ impl Markers {
         };
         match meta {
             Meta::LayerChange { index, z } => {
-                let name = index.map_or_else(|| z.map(|z| format!("Z{z}")), |i| Some(i.to_string()));
+                let name =
+                    index.map_or_else(|| z.map(|z| format!("Z{z}")), |i| Some(i.to_string()));
                 self.layers.push(part(name, *z, line));
                 self.layer = self.layers.len() - 1;
             }
@@ -385,8 +394,14 @@ mod tests {
             Ok(Box::new(std::io::Cursor::new(text.as_bytes().to_vec())))
         };
         let wanted = |c: &Command| matches!(c, Command::Other { name } if name == "M73");
-        let e = estimate(&machine(), PlanOptions::default(), &open, "t.gcode", &wanted)
-            .expect("estimate");
+        let e = estimate(
+            &machine(),
+            PlanOptions::default(),
+            &open,
+            "t.gcode",
+            &wanted,
+        )
+        .expect("estimate");
         assert_eq!(e.slicer, Some(99.0));
         let names: Vec<_> = e.layers.iter().map(|p| p.name.clone()).collect();
         assert_eq!(names, [None, Some("0".into()), Some("1".into())]);
@@ -394,7 +409,10 @@ mod tests {
         assert!((sum(&e.layers) - e.total).abs() < 1e-9);
         assert!((sum(&e.features) - e.total).abs() < 1e-9);
         let features: Vec<_> = e.features.iter().map(|p| p.name.clone()).collect();
-        assert_eq!(features, [None, Some("WALL-OUTER".into()), Some("FILL".into())]);
+        assert_eq!(
+            features,
+            [None, Some("WALL-OUTER".into()), Some("FILL".into())]
+        );
         // Two 50 mm walls at 50 mm/s, one 50 mm fill move.
         assert!(e.features[1].time > e.features[2].time * 1.5);
         assert_eq!(e.marks.len(), 2);

@@ -62,6 +62,10 @@ pub struct Estimate {
     /// The same file planned without the machine's motor limits (polar bed, SCARA joints, step rates): what
     /// Klipper's own planner makes of the path at the requested speeds (s).
     pub without_motor_limits: f64,
+    /// With `--klipper-batch`: the print time Klipper's batch mode logs at the end of the input, for comparisons
+    /// with it (the end of the print, or where its step generation could restart when that is later).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub klipper_exit_time: Option<f64>,
     /// The slicer's own estimate (s), the first the file states.
     pub slicer: Option<f64>,
     pub layers: Vec<Part>,
@@ -192,6 +196,7 @@ impl Breakdown {
         Estimate {
             total: self.total,
             without_motor_limits: unlimited.total,
+            klipper_exit_time: self.summary.klipper_exit_time,
             slicer: self.slicer,
             layers: lost(self.layers, &unlimited.layers),
             features: lost(self.features, &unlimited.features),

@@ -50,6 +50,9 @@ pub struct PlanSummary {
     pub gcode_warnings: Vec<gcode::Warning>,
     /// Moves a machine limit slowed below a quarter of their requested speed.
     pub slow_moves: SlowMoves,
+    /// With Klipper's batch-mode flushing: the print time Klipper logs at the end of its input (the end of the print,
+    /// or where its step generation could restart when that is later).
+    pub klipper_exit_time: Option<f64>,
 }
 
 /// The reader and the planner of one stream, both at the machine's homing pose (a file is printed on a homed
@@ -130,6 +133,10 @@ pub fn plan_gcode_observed<S: MoveSink>(
     }
     let gcode_warnings = commands.take_warnings();
     let last_line = commands.reader().line_number();
+    let klipper_exit_time = setup
+        .planner
+        .klipper_batch_flush
+        .then(|| planner.klipper_exit_time());
     let (sink, end_time, warnings, slow_moves) =
         planner.finish().map_err(|error| PipelineError::Sink {
             span: line_start(last_line),
@@ -142,6 +149,7 @@ pub fn plan_gcode_observed<S: MoveSink>(
             warnings,
             gcode_warnings,
             slow_moves,
+            klipper_exit_time,
         },
     ))
 }

@@ -6,6 +6,23 @@ use printjob::Machine;
 
 use crate::diag;
 
+/// `--host` (of `run` and `estimate`): whose planning to reproduce.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum HostArg {
+    #[default]
+    Klipper,
+    KalicoFekt,
+}
+
+impl From<HostArg> for motion::Host {
+    fn from(h: HostArg) -> Self {
+        match h {
+            HostArg::Klipper => motion::Host::Klipper,
+            HostArg::KalicoFekt => motion::Host::KalicoFekt,
+        }
+    }
+}
+
 /// Load `printer.cfg` and build the machine; the file becomes an input no output may replace.
 pub fn load_machine(path: &Path) -> miette::Result<Machine> {
     let config = read_config(path)?;

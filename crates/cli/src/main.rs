@@ -10,6 +10,7 @@ mod magnets;
 mod maps;
 mod output;
 mod report;
+mod timing;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -35,6 +36,10 @@ enum Command {
     Run(cmd::run::RunArgs),
     /// Check a print against a machine without generating steps: reach, limits, slow moves.
     Check(cmd::run::CheckArgs),
+    /// The time the printer will take (plan only): by layer, feature type and machine limit, beside the slicer's.
+    Estimate(cmd::estimate::Args),
+    /// Rewrite a G-code file's M73 progress lines and time comments with the planned times (slicer post-processing).
+    PostProcess(cmd::post_process::Args),
     /// Draw where the machine reaches and its resolution (mm per motor step) across the bed.
     Workspace(cmd::workspace::Args),
     /// Rewrite G-code for firmware without these kinematics (radius/angle or joint angles), with a bounded path error.
@@ -67,6 +72,8 @@ fn main() -> ExitCode {
         Command::Stats(args) => cmd::stats::run(args),
         Command::Run(args) => cmd::run::run(args),
         Command::Check(args) => cmd::run::check(args),
+        Command::Estimate(args) => cmd::estimate::run(args),
+        Command::PostProcess(args) => cmd::post_process::run(args),
         Command::Workspace(args) => cmd::workspace::run(args),
         Command::Convert(args) => cmd::convert::run(args),
         Command::Calibrate(command) => cmd::calibrate::run(command),

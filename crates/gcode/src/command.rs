@@ -92,6 +92,16 @@ pub enum Meta {
     /// Object-exclusion markers (`EXCLUDE_OBJECT_START NAME=…`, `; printing object …`).
     ObjectStart(String),
     ObjectEnd(String),
+    /// The slicer's own estimate of the whole print, in seconds (PrusaSlicer/SuperSlicer/Orca/Bambu
+    /// `; estimated printing time (normal mode) = 1h 2m 3s`, Cura `;TIME:3723`, Simplify3D
+    /// `;   Build time: 1 hours 2 minutes`, KISSlicer `; Estimated Build Time:   62.05 minutes`); `silent`:
+    /// PrusaSlicer's second estimate, for its printers' stealth mode (`(silent mode)`).
+    PrintTimeEstimate {
+        seconds: f64,
+        silent: bool,
+    },
+    /// Cura's time elapsed since the start of the print at this point (`;TIME_ELAPSED:123.4`), seconds.
+    TimeElapsed(f64),
 }
 
 /// One interpreted command.

@@ -171,6 +171,11 @@ impl<'k, S: MoveSink> Planner<'k, S> {
         Ok((sink, end, self.warnings, slow))
     }
 
+    /// The print time Klipper's batch mode logs when its input ends ([`Toolhead::klipper_exit_time`]).
+    pub fn klipper_exit_time(&mut self) -> f64 {
+        self.toolhead.klipper_exit_time()
+    }
+
     /// The sink's error, once it has failed: planning should stop.
     pub fn take_sink_error(&mut self) -> Option<SinkError> {
         self.toolhead.take_sink_error()

@@ -99,6 +99,8 @@ pub struct Toolhead<'k, S: MoveSink> {
     bed_ray: [f64; 2],
     /// Some motor has an acceleration limit, so corners are capped ([`kinematic_limits::junction_v2`]).
     corners_capped: bool,
+    /// A move has enabled the motors since the start or the last M84 (Klipper enables a stepper when it steps).
+    motors_enabled: bool,
 }
 
 /// Klipper's motion-queuing bookkeeping: how far step generation has been flushed. In batch mode
@@ -143,6 +145,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             bed_ray: [1.0, 0.0],
             print_time: 0.0,
             need_prime: true,
+            motors_enabled: false,
         }
     }
 
@@ -175,6 +178,23 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             Some(e) => Err(e),
             None => Ok((self.sink, self.print_time, self.slow_moves)),
         }
+    }
+
+    /// The print time Klipper's batch mode logs at the end of its input (`Exiting (print time …)`): its flush timer
+    /// runs once more, then `get_last_move_time` plans what is queued and, when the queue had run empty, reports
+    /// where step generation could restart if that is later than the end of the print. The planned moves and the
+    /// end time [`Self::finish`] returns are the same whether this is asked or not.
+    pub fn klipper_exit_time(&mut self) -> f64 {
+        self.input_block_boundary();
+        let primed = self.need_prime;
+        self.flush_lookahead();
+        let end = self.print_time;
+        if primed {
+            self.calc_print_time();
+        }
+        let exit = self.print_time;
+        self.print_time = end;
+        exit
     }
 
     /// Keep the sink's first error: planning stops at the command that met it.
@@ -446,10 +466,18 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
         self.flush_lookahead();
     }
 
-    /// M84/M18: Klipper dwells before and after disabling the motors.
+    /// M84/M18 as Klipper's `stepper_enable` does it: step generation flushed to the end of the queued moves, and,
+    /// when some motor was enabled (a move since the start or the last M84 enabled it), a dwell before and after
+    /// disabling them.
     pub fn motors_off(&mut self) {
-        self.dwell(DISABLE_STALL_TIME);
-        self.dwell(DISABLE_STALL_TIME);
+        self.flush_lookahead();
+        let need = self.clock.need_step_gen_time;
+        self.advance_flush_time(need, 0.0);
+        if self.motors_enabled {
+            self.dwell(DISABLE_STALL_TIME);
+            self.dwell(DISABLE_STALL_TIME);
+            self.motors_enabled = false;
+        }
     }
 
     /// Declare the toolhead position (homing, `SET_KINEMATIC_POSITION`): all queued motion is finished first,
@@ -557,6 +585,7 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
 
     /// Motion up to `end_time` was queued for step generation.
     fn note_motion_queued(&mut self, end_time: f64) {
+        self.motors_enabled = true;
         let t = end_time + self.config.kin_flush_delay;
         self.clock.need_step_gen_time = self.clock.need_step_gen_time.max(t);
         self.clock.need_flush_time = self.clock.need_flush_time.max(t);

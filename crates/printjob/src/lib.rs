@@ -1,11 +1,12 @@
 //! A print job assembled in one place, between the libraries and the front-ends: a machine built from
 //! `printer.cfg` ([`Machine`]), and a G-code stream planned ([`plan_gcode`]), checked for every problem
-//! ([`check_gcode`], [`audit_file`]) or run to every motor's audited steps ([`run`]). Summaries, warnings and
+//! ([`check_gcode`], [`audit_file`]), estimated with its time broken down ([`estimate`]) or run to every motor's audited steps ([`run`]). Summaries, warnings and
 //! problems come back as data and failures as typed errors; the front-ends (the CLI, the simulator, the fuzz
 //! targets, the benches) render them. Cancellation is passed in.
 
 pub mod audit;
 mod check;
+mod estimate;
 
 mod moves_file;
 mod plan;
@@ -13,7 +14,8 @@ mod run;
 
 pub use audit::StepStreamError;
 pub use check::{CheckReport, Problem, Severity, audit_file, check_gcode};
+pub use estimate::{Estimate, EstimateError, LimitCost, Part, Reopen, SlowLine, estimate};
 pub use machine::{ConfigNote, LoadError, Machine, PlanOptions};
 pub use moves_file::MovesFile;
-pub use plan::{PipelineError, PlanSummary, plan_gcode};
+pub use plan::{PipelineError, PlanSummary, plan_gcode, plan_gcode_observed};
 pub use run::{MotorSummary, RunError, RunOptions, RunSummary, WarningLine, run};

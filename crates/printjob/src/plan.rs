@@ -50,6 +50,9 @@ pub struct PlanSummary {
     pub gcode_warnings: Vec<gcode::Warning>,
     /// Moves a machine limit slowed below a quarter of their requested speed.
     pub slow_moves: SlowMoves,
+    /// With Klipper's batch-mode flushing: the print time Klipper logs at the end of its input (the end of the print,
+    /// or where its step generation could restart when that is later).
+    pub klipper_exit_time: Option<f64>,
 }
 
 /// The reader and the planner of one stream, both at the machine's homing pose (a file is printed on a homed
@@ -85,10 +88,23 @@ pub fn plan_gcode<S: MoveSink>(
     source_name: &str,
     sink: S,
 ) -> Result<(S, PlanSummary), PipelineError> {
+    plan_gcode_observed(setup, input, source_name, sink, |_| {})
+}
+
+/// [`plan_gcode`], showing `observe` every command (metadata and pass-through commands included) before it is
+/// planned: for a breakdown of the planned time by what the file says between its moves.
+pub fn plan_gcode_observed<S: MoveSink>(
+    setup: &MachineSetup,
+    input: impl BufRead,
+    source_name: &str,
+    sink: S,
+    mut observe: impl FnMut(&gcode::Spanned<gcode::Command>),
+) -> Result<(S, PlanSummary), PipelineError> {
     let (mut commands, mut planner) = start(setup, input, source_name, sink);
     let mut block = 0u64;
     while let Some(command) = commands.next_command() {
         let command = command?;
+        observe(&command);
         // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
         let line_end_block =
             commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
@@ -117,6 +133,10 @@ pub fn plan_gcode<S: MoveSink>(
     }
     let gcode_warnings = commands.take_warnings();
     let last_line = commands.reader().line_number();
+    let klipper_exit_time = setup
+        .planner
+        .klipper_batch_flush
+        .then(|| planner.klipper_exit_time());
     let (sink, end_time, warnings, slow_moves) =
         planner.finish().map_err(|error| PipelineError::Sink {
             span: line_start(last_line),
@@ -129,6 +149,7 @@ pub fn plan_gcode<S: MoveSink>(
             warnings,
             gcode_warnings,
             slow_moves,
+            klipper_exit_time,
         },
     ))
 }

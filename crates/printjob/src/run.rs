@@ -297,7 +297,7 @@ impl Motors {
 }
 
 /// The planner's and the reader's warnings, in file order.
-fn warning_lines(summary: &PlanSummary) -> Vec<WarningLine> {
+pub(crate) fn warning_lines(summary: &PlanSummary) -> Vec<WarningLine> {
     let line = |span: gcode::Span, message: &str| WarningLine {
         line: span.line,
         column: span.column,

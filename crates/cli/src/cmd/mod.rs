@@ -3,6 +3,8 @@
 pub mod calibrate;
 pub mod convert;
 pub mod demo;
+pub mod estimate;
+pub mod post_process;
 pub mod run;
 pub mod simulate;
 pub mod stats;

@@ -1,6 +1,6 @@
 //! `jointspace run` (plan + every motor step) and `jointspace check` (plan only, list every problem).
 
-use crate::machine::load_machine;
+use crate::machine::{HostArg, load_machine};
 use crate::{diag, input, report};
 use printjob::{PlanOptions, RunError, RunOptions};
 use std::path::{Path, PathBuf};
@@ -35,23 +35,6 @@ pub struct RunArgs {
     /// first move at 0.251 s).
     #[arg(long, value_enum, default_value_t = HostArg::Klipper)]
     pub host: HostArg,
-}
-
-/// `--host`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum HostArg {
-    #[default]
-    Klipper,
-    KalicoFekt,
-}
-
-impl From<HostArg> for motion::Host {
-    fn from(h: HostArg) -> Self {
-        match h {
-            HostArg::Klipper => motion::Host::Klipper,
-            HostArg::KalicoFekt => motion::Host::KalicoFekt,
-        }
-    }
 }
 
 #[derive(Debug, clap::Args)]

@@ -7,6 +7,7 @@ mod catalogue;
 mod check;
 mod common;
 mod determinism;
+mod estimate;
 mod fuzz_regressions;
 mod host;
 mod includes;

@@ -57,7 +57,7 @@ const POLAR_WALK: Walk = Walk {
     step: 180.0,
 };
 
-fn cli_json(args: &[&str]) -> serde_json::Value {
+pub fn cli_json(args: &[&str]) -> serde_json::Value {
     let output = std::process::Command::new(jointspace())
         .args(args)
         .output()
@@ -71,7 +71,7 @@ fn cli_json(args: &[&str]) -> serde_json::Value {
     })
 }
 
-fn host_print_time(run: &Run) -> f64 {
+pub fn host_print_time(run: &Run) -> f64 {
     run.log
         .lines()
         .find_map(|l| {

@@ -11,6 +11,7 @@ mod centre_scan;
 mod config_errors;
 mod differential;
 mod engine;
+mod estimate;
 mod examples;
 mod header;
 mod homing;

@@ -39,6 +39,13 @@ fn report_json(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&text).expect("json")
 }
 
+/// The deposited path's largest deviation in the report's `run` ("before" or "after"), mm.
+fn max_deviation(json: &serde_json::Value, run: &str) -> f64 {
+    json[run]["deposited"]["max_path_deviation"]
+        .as_f64()
+        .expect(run)
+}
+
 /// An arm built 1.5 mm beside the axis never comes nearer the axis than 1.5 mm (its line passes the axis at that
 /// distance), so the corrected machine cannot print a line 0.5 mm from it: the "before" report is written, the
 /// reason for no "after" names the G-code line, exit status 3.
@@ -59,9 +66,7 @@ fn a_correction_the_print_cannot_take_still_writes_the_uncorrected_report() {
         .expect("measured");
     assert!((measured - 1.5).abs() < 0.01, "{measured}");
     // The uncorrected run, whole: the line printed 1.5 mm off at most.
-    let before = json["before"]["deposited"]["max_path_deviation"]
-        .as_f64()
-        .expect("before");
+    let before = max_deviation(&json, "before");
     assert!(before > 0.5 && before < 1.6, "{before}");
     assert!(
         stderr.contains("warning: the correction was not simulated")
@@ -88,12 +93,8 @@ fn a_correction_the_print_can_take_is_simulated() {
     );
     let json = report_json(dir.path());
     assert!(json["after_missing"].is_null());
-    let before = json["before"]["deposited"]["max_path_deviation"]
-        .as_f64()
-        .expect("before");
-    let after = json["after"]["deposited"]["max_path_deviation"]
-        .as_f64()
-        .expect("after");
+    let before = max_deviation(&json, "before");
+    let after = max_deviation(&json, "after");
     assert!(before > 0.25 && after < 0.05, "{before} → {after}");
     assert!(dir.path().join("report/overlay-after.png").is_file());
 }

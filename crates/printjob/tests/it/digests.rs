@@ -142,17 +142,11 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// The cases: every golden case (its printer.cfg and input) and the polar bench.
 fn cases(shared: &Path) -> Vec<(String, PathBuf, PathBuf)> {
-    let mut cases: Vec<(String, PathBuf, PathBuf)> = std::fs::read_dir(shared.join("golden"))
-        .expect("golden lists")
-        .flatten()
-        .map(|e| e.path())
+    let mut cases: Vec<(String, PathBuf, PathBuf)> = entries(&shared.join("golden"))
+        .into_iter()
         .filter(|p| p.join("printer.cfg").is_file())
-        .map(|p| {
-            let name = p.file_name().expect("name").to_string_lossy().into_owned();
-            (name, p.join("printer.cfg"), p.join("input.gcode"))
-        })
+        .map(|p| (name_of(&p), p.join("printer.cfg"), p.join("input.gcode")))
         .collect();
-    cases.sort();
     let bench = shared.join("bench");
     cases.push((
         "polar-bench".into(),
@@ -173,23 +167,31 @@ fn run_digests(case: &str, cfg: &Path, gcode: &Path) -> Vec<(String, String, u64
     };
     let input = std::io::BufReader::new(std::fs::File::open(gcode).expect("gcode opens"));
     printjob::run(&machine, input, "input.gcode", &options, || false).expect("runs");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir.path().join("steps"))
-        .expect("steps list")
+    entries(&dir.path().join("steps"))
+        .iter()
+        .map(|f| {
+            let digest = fnv1a(&std::fs::read(f).expect("reads"));
+            (case.to_string(), name_of(f), digest)
+        })
+        .collect()
+}
+
+/// The entries of `dir`, in name order.
+fn entries(dir: &Path) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("the folder lists")
         .flatten()
         .map(|e| e.path())
         .collect();
-    files.sort();
-    files
-        .iter()
-        .map(|f| {
-            let name = f.file_name().expect("name").to_string_lossy().into_owned();
-            (
-                case.to_string(),
-                name,
-                fnv1a(&std::fs::read(f).expect("reads")),
-            )
-        })
-        .collect()
+    found.sort();
+    found
+}
+
+fn name_of(path: &Path) -> String {
+    path.file_name()
+        .expect("name")
+        .to_string_lossy()
+        .into_owned()
 }
 
 #[test]

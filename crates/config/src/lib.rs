@@ -28,5 +28,8 @@ pub use machine::{
     ArcConfig, ExtruderConfig, KinematicsKind, MachineConfig, PrinterLimits, UnusedKey,
 };
 pub use span::Span;
-pub use stepper::{HomingConfig, StepperConfig, StepperUnits};
+pub use stepper::{
+    DEFAULT_STEP_PULSE_DURATION, HomingConfig, StepRateLimit, StepRateSource, StepperConfig,
+    StepperUnits,
+};
 pub use value::{Bounds, Pin, Pull, parse_bool, parse_f64, parse_pin};

@@ -12,7 +12,7 @@ use kinematics::{
 use crate::document::{ConfigDocument, Section};
 use crate::error::{ConfigError, ConfigWarning};
 use crate::span::Span;
-use crate::stepper::{StepperConfig, StepperRole, StepperUnits, read_stepper};
+use crate::stepper::{StepRateLimit, StepperConfig, StepperRole, StepperUnits, read_stepper};
 use crate::value::Bounds;
 
 /// Which kinematics `[printer] kinematics` selects.
@@ -120,6 +120,8 @@ pub struct MachineConfig {
     pub limits: PrinterLimits,
     pub extruder: Option<ExtruderConfig>,
     pub arcs: Option<ArcConfig>,
+    /// `[force_move] enable_force_move: True`: Klipper then has `SET_KINEMATIC_POSITION`.
+    pub force_move: bool,
     /// Every stepper: the kinematics' steppers in their order, then the extruder's.
     pub steppers: Vec<StepperConfig>,
     /// SCARA `home_position` (x, y[, z] in mm), the pose the FEKT-SCARA module declares when homing.
@@ -143,7 +145,6 @@ const KEYS_READ_ELSEWHERE: &[&str] = &[
     "buffer_time_start",
     "move_flush_time",
     // stepper / rail homing extras
-    "step_pulse_duration",
     "second_homing_speed",
     "homing_retract_speed",
     "homing_retract_dist",
@@ -230,6 +231,11 @@ impl MachineConfig {
             warn_pressure_advance(&document, extruder, &mut warnings);
         }
         let arcs = document.section("gcode_arcs").map(read_arcs).transpose()?;
+        let force_move = document
+            .section("force_move")
+            .map(|section| section.get_bool_or("enable_force_move", false))
+            .transpose()?
+            .unwrap_or(false);
         warn_ignored_steppers(&document, kinematics, &steppers, &mut warnings);
         Ok(MachineConfig {
             path: document.path().to_path_buf(),
@@ -238,6 +244,7 @@ impl MachineConfig {
             limits,
             extruder,
             arcs,
+            force_move,
             steppers,
             home_position,
             document,
@@ -255,10 +262,21 @@ impl MachineConfig {
     /// A stepper's step-rate limit (steps/s): its own `max_step_rate`, else `[printer]`'s; the extruder's
     /// stepper too.
     pub fn max_step_rate(&self, stepper: &str) -> Option<f64> {
+        self.stepper_or_extruder(stepper)
+            .map_or(self.limits.max_step_rate, |s| s.max_step_rate)
+    }
+
+    /// The step-rate limit the step audit holds a motor's stream to ([`StepperConfig::step_rate_limit`]); `None`
+    /// for a name that is no stepper here.
+    pub fn step_rate_limit(&self, stepper: &str) -> Option<StepRateLimit> {
+        self.stepper_or_extruder(stepper)
+            .map(StepperConfig::step_rate_limit)
+    }
+
+    fn stepper_or_extruder(&self, stepper: &str) -> Option<&StepperConfig> {
         let extruder = self.extruder.as_ref().map(|e| &e.stepper);
         self.stepper(stepper)
             .or(extruder.filter(|s| s.name.eq_ignore_ascii_case(stepper)))
-            .map_or(self.limits.max_step_rate, |s| s.max_step_rate)
     }
 
     /// Keys in the sections jointspace interprets that nothing read (likely misspelt), with spans.

@@ -62,6 +62,9 @@ pub struct StepperConfig {
     pub homing: Option<HomingConfig>,
     /// jointspace: highest step rate this motor may be asked for (steps/s), if limited.
     pub max_step_rate: Option<f64>,
+    /// Klipper's `step_pulse_duration` (s), if written: how long the MCU holds the step pin, so no step of this
+    /// motor can follow the one before sooner.
+    pub step_pulse_duration: Option<f64>,
 }
 
 impl StepperConfig {
@@ -82,6 +85,67 @@ impl StepperConfig {
             step_distance: self.step_distance,
             position_min: self.position_min.map(unit),
             position_max: self.position_max.map(unit),
+        }
+    }
+}
+
+/// Klipper's step pulse when a stepper section writes none (`klippy/stepper.py`: 2 µs; its TMC driver modules
+/// lower it to 100 ns, which a config states with `step_pulse_duration`).
+pub const DEFAULT_STEP_PULSE_DURATION: f64 = 2e-6;
+
+/// The highest step rate a motor's MCU stream may have, and where that limit comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepRateLimit {
+    pub steps_per_second: f64,
+    pub source: StepRateSource,
+}
+
+/// Where a [`StepRateLimit`] comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepRateSource {
+    /// The stepper's or `[printer]`'s `max_step_rate`: the planner keeps under it too.
+    MaxStepRate,
+    /// The stepper's `step_pulse_duration`: a step cannot start before the pulse before it has ended.
+    StepPulse,
+    /// Neither is written: Klipper's default pulse, [`DEFAULT_STEP_PULSE_DURATION`].
+    DefaultStepPulse,
+}
+
+impl StepRateLimit {
+    /// What the limit is, for a message: the rate and the setting it comes from.
+    pub fn describe(&self) -> String {
+        let rate = self.steps_per_second;
+        match self.source {
+            StepRateSource::MaxStepRate => format!("its max_step_rate of {rate:.0} steps/s"),
+            StepRateSource::StepPulse => {
+                format!("{rate:.0} steps/s, one step per step_pulse_duration")
+            }
+            StepRateSource::DefaultStepPulse => format!(
+                "{rate:.0} steps/s, one step per Klipper's default 2 µs step pulse (no max_step_rate or \
+                 step_pulse_duration is set; set max_step_rate for this board and the planner keeps under it)"
+            ),
+        }
+    }
+}
+
+impl StepperConfig {
+    /// The step rate the MCU stream of this motor may not exceed: `max_step_rate` where set, else one step per
+    /// step pulse (the configured one, or Klipper's default).
+    pub fn step_rate_limit(&self) -> StepRateLimit {
+        let from_pulse = |pulse: f64, source| StepRateLimit {
+            steps_per_second: 1.0 / pulse,
+            source,
+        };
+        match (self.max_step_rate, self.step_pulse_duration) {
+            (Some(rate), _) => StepRateLimit {
+                steps_per_second: rate,
+                source: StepRateSource::MaxStepRate,
+            },
+            (None, Some(pulse)) => from_pulse(pulse, StepRateSource::StepPulse),
+            (None, None) => from_pulse(
+                DEFAULT_STEP_PULSE_DURATION,
+                StepRateSource::DefaultStepPulse,
+            ),
         }
     }
 }
@@ -124,6 +188,8 @@ pub(crate) fn read_stepper(
     let max_step_rate = section
         .get_f64_opt("max_step_rate", Bounds::NONE.above(0.0))?
         .or(default_max_step_rate);
+    let step_pulse_duration =
+        section.get_f64_opt("step_pulse_duration", Bounds::NONE.above(0.0).max(0.001))?;
     let (position_min, position_max, homing) = match role {
         StepperRole::Rail => read_rail(section)?,
         StepperRole::Plain => (None, None, None),
@@ -144,6 +210,7 @@ pub(crate) fn read_stepper(
         position_max,
         homing,
         max_step_rate,
+        step_pulse_duration,
     })
 }
 

@@ -55,6 +55,10 @@ pub enum ErrorKind {
     #[error("G2/G3 does not support R moves (as Klipper: give the centre with I and J)")]
     ArcRadiusUnsupported,
     #[error(
+        "G20 (inch units): Klipper refuses it (\"Machine does not support G20 (inches) command\")"
+    )]
+    InchUnitsUnsupported,
+    #[error(
         "R arc that ends where it starts: its centre is undefined (give I/J for a full circle)"
     )]
     ArcRClosed,
@@ -118,6 +122,8 @@ pub enum WarningKind {
     DuplicateParameter,
     /// A command letter other than G, M or T (`X10` alone on a line).
     UnknownCommandLetter,
+    /// A command the firmware does not have as configured (G2 without `[gcode_arcs]` on Klipper): skipped.
+    UnknownCommand,
     /// Non-UTF-8 bytes inside a comment, replaced by U+FFFD.
     LossyComment,
 }

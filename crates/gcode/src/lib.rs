@@ -28,7 +28,7 @@ pub mod writer;
 
 pub use command::{AccelParams, Arc, Command, Meta, Move, Position, Span, Spanned, VelocityLimit};
 pub use error::{ErrorKind, GcodeError, Warning, WarningKind, Warnings};
-pub use interp::{Commands, Interpreter, InterpreterOptions};
+pub use interp::{CommandSet, Commands, Interpreter, InterpreterOptions};
 pub use lexer::{CommandWord, Comment, ExtParam, Line, Word};
 pub use reader::{Reader, ReaderOptions};
 pub use stats::{Stats, StatsCollector, file_stats};

@@ -25,6 +25,8 @@ pub struct MachineSetup {
     pub planner: PlannerConfig,
     /// Where G28 leaves the toolhead, derived from the endstop positions through the kinematics.
     pub home_position: Option<[f64; 3]>,
+    /// How Klipper reads G-code on this printer: the commands its configuration gives it.
+    pub reading: gcode::InterpreterOptions,
 }
 
 impl MachineSetup {
@@ -60,7 +62,17 @@ impl MachineSetup {
             kinematics,
             planner,
             home_position,
+            reading: gcode::InterpreterOptions::klipper(klipper_commands(machine)),
         })
+    }
+}
+
+/// The optional commands Klipper has with this configuration (`[gcode_arcs]`, `[force_move]`).
+fn klipper_commands(machine: &MachineConfig) -> gcode::CommandSet {
+    gcode::CommandSet {
+        arcs: machine.arcs.is_some(),
+        kinematic_position: machine.force_move,
+        ..gcode::CommandSet::ALL
     }
 }
 

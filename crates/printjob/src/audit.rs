@@ -5,6 +5,7 @@
 use std::io::BufReader;
 use std::path::Path;
 
+use config::StepRateLimit;
 use kinematics::{Kinematics, MotorUnit};
 use machine::MachineSetup;
 use stepgen::{StepProblem, net_agrees};
@@ -47,6 +48,8 @@ pub struct AuditedMotor<'a> {
     pub stretches: u32,
     /// Print time of the motor's last step (s), where a position problem is reported.
     pub last_time: f64,
+    /// The step-rate limit its stream was audited against, which a message about a too-fast step names.
+    pub limit: Option<StepRateLimit>,
 }
 
 /// The first problem over all motors (the earliest step problem, then position disagreements in motor order).
@@ -58,9 +61,20 @@ pub fn first_problem(motors: &[AuditedMotor], clock_hz: f64) -> Option<StepStrea
         .map(|(m, p)| StepStreamError {
             motor: m.name.to_string(),
             time: p.clock() as f64 / clock_hz,
-            message: p.describe(clock_hz),
+            message: step_message(m, p, clock_hz),
         });
     step_problem.or_else(|| motors.iter().find_map(position_problem))
+}
+
+/// A step problem in words; a too-fast step names the limit it broke and where that limit comes from.
+fn step_message(m: &AuditedMotor, problem: StepProblem, clock_hz: f64) -> String {
+    let what = problem.describe(clock_hz);
+    match (problem, m.limit) {
+        (StepProblem::TooFast { .. }, Some(limit)) => {
+            format!("{what}; the limit is {}", limit.describe())
+        }
+        _ => what,
+    }
 }
 
 fn position_problem(m: &AuditedMotor) -> Option<StepStreamError> {

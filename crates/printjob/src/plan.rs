@@ -67,7 +67,7 @@ pub(crate) fn start<'a, R: BufRead, S: MoveSink>(
     let mut planner = Planner::new(toolhead, setup.planner.arc_resolution, setup.home_position);
     // Read as Klipper reads it: the job is planned as Klipper plans it.
     let reader = gcode::Reader::new(input, source_name);
-    let mut commands = Commands::new(reader, gcode::InterpreterOptions::klipper());
+    let mut commands = Commands::new(reader, setup.reading);
     if let Some(home) = setup.home_position {
         planner.start_at(home);
         let mut position = commands.interpreter().last_position();

@@ -5,6 +5,7 @@ use std::io::BufRead;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use config::StepRateLimit;
 use kinematics::Kinematics;
 use serde::Serialize;
 use stepgen::{
@@ -183,8 +184,10 @@ fn run_to_files(
 /// The machine's motors as a run steps them: the kinematics' motors, then the extruder's.
 struct Motors {
     names: Vec<String>,
-    /// Each motor's configured step-rate limit.
+    /// Each motor's configured step-rate limit (`max_step_rate`), which the run warns about over 1 ms.
     max_rates: Vec<Option<f64>>,
+    /// Each motor's limit for the step audit: `max_step_rate`, or one step per step pulse.
+    audit_limits: Vec<Option<StepRateLimit>>,
     extruder: Option<ExtruderSpec>,
 }
 
@@ -205,9 +208,14 @@ impl Motors {
             .iter()
             .map(|name| machine.config.max_step_rate(name))
             .collect();
+        let audit_limits = names
+            .iter()
+            .map(|name| machine.config.step_rate_limit(name))
+            .collect();
         Motors {
             names,
             max_rates,
+            audit_limits,
             extruder,
         }
     }
@@ -216,13 +224,13 @@ impl Motors {
     /// is made by `outfile` as the file is).
     fn sinks(&self, options: &RunOptions) -> Result<Vec<FileAndStats>, RunError> {
         let mut sinks = Vec::with_capacity(self.names.len());
-        for (name, &max_rate) in self.names.iter().zip(&self.max_rates) {
+        for (name, limit) in self.names.iter().zip(&self.audit_limits) {
             let file = match &options.steps {
                 Some(dir) => Some(StepFileWriter::create(dir.join(format!("{name}.txt")))?),
                 None => None,
             };
             sinks.push(Tee(
-                StepStats::new(options.clock_hz).audited(max_rate),
+                StepStats::new(options.clock_hz).audited(limit.map(|l| l.steps_per_second)),
                 file,
             ));
         }
@@ -259,6 +267,7 @@ impl Motors {
                     expected_travel,
                     stretches,
                     last_time: stats.last_clock.unwrap_or(0) as f64 / clock_hz,
+                    limit: self.audit_limits[i],
                 }
             })
             .collect();

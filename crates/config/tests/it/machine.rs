@@ -468,3 +468,48 @@ fn plugin_kinematics_names_load_the_same_machines() {
         assert_eq!(a.params, b.params);
     }
 }
+
+/// The step audit's limit: `max_step_rate` where set (the stepper's, else `[printer]`'s), else one step per
+/// `step_pulse_duration`, else one per Klipper's default 2 µs pulse.
+#[test]
+fn step_rate_limits_come_from_the_rate_the_pulse_or_klippers_default() {
+    use config::StepRateSource::{DefaultStepPulse, MaxStepRate, StepPulse};
+    let limit = |text: &str, stepper: &str| {
+        let l = machine(text).step_rate_limit(stepper).expect("a stepper");
+        (l.steps_per_second, l.source)
+    };
+    assert_eq!(
+        limit(&scara("ecr: 1"), "stepper_a"),
+        (500_000.0, DefaultStepPulse)
+    );
+    assert_eq!(
+        limit(&scara("ecr: 1\nmax_step_rate: 40000"), "stepper_a"),
+        (40_000.0, MaxStepRate)
+    );
+    let pulse = scara("ecr: 1").replace(
+        "[stepper_b]\n",
+        "[stepper_b]\nstep_pulse_duration: 0.000000100\n",
+    );
+    assert_eq!(limit(&pulse, "stepper_a"), (500_000.0, DefaultStepPulse));
+    let (rate, source) = limit(&pulse, "stepper_b");
+    assert_eq!(source, StepPulse);
+    assert!((rate - 1e7).abs() < 1e-6, "{rate}");
+    let both = pulse.replace(
+        "step_pulse_duration",
+        "max_step_rate: 123\nstep_pulse_duration",
+    );
+    assert_eq!(limit(&both, "stepper_b"), (123.0, MaxStepRate));
+    assert!(
+        machine(&scara("ecr: 1"))
+            .step_rate_limit("stepper_q")
+            .is_none()
+    );
+    let describe = machine(&scara("ecr: 1"))
+        .step_rate_limit("stepper_a")
+        .expect("a")
+        .describe();
+    assert!(
+        describe.contains("Klipper's default 2 µs step pulse"),
+        "{describe}"
+    );
+}

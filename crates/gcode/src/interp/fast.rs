@@ -145,8 +145,12 @@ impl Interpreter {
         let rapid = match bytes.get(start..start + 2)? {
             [b'G' | b'g', b'0'] => true,
             [b'G' | b'g', b'1'] => false,
-            [b'G' | b'g', b'2'] => return self.plain_arc_line(bytes, start, line, true, sink),
-            [b'G' | b'g', b'3'] => return self.plain_arc_line(bytes, start, line, false, sink),
+            [b'G' | b'g', b'2'] if self.commands.arcs => {
+                return self.plain_arc_line(bytes, start, line, true, sink);
+            }
+            [b'G' | b'g', b'3'] if self.commands.arcs => {
+                return self.plain_arc_line(bytes, start, line, false, sink);
+            }
             [b'G' | b'g', b'9'] if bytes.get(start + 2) == Some(&b'2') => {
                 return hand_over(self.plain_set_position_line(bytes, start, line), sink);
             }

@@ -149,6 +149,15 @@ impl Interpreter {
     }
 
     fn g_code(&mut self, line: &Line<'_>, major: u32) -> Result<Option<Command>, Fail> {
+        if matches!(major, 2 | 3 | 17..=19) && !self.commands.arcs {
+            return Ok(self.unknown_command(line, "without [gcode_arcs]"));
+        }
+        if major == 20 && !self.commands.inches {
+            return Err(Box::new((
+                line.command_extent(),
+                ErrorKind::InchUnitsUnsupported,
+            )));
+        }
         let command = match major {
             0 | 1 => Command::Move(self.linear_move(line, major == 0)?),
             2 | 3 => Command::Arc(Box::new(self.arc(line, major == 2)?)),
@@ -397,6 +406,8 @@ impl Interpreter {
                 minimum_cruise_ratio: ext_number(line, "MINIMUM_CRUISE_RATIO")?,
                 accel_to_decel: ext_number(line, "ACCEL_TO_DECEL")?,
             })
+        } else if is("SET_KINEMATIC_POSITION") && !self.commands.kinematic_position {
+            return Ok(self.unknown_command(line, "without [force_move] enable_force_move: True"));
         } else if is("SET_KINEMATIC_POSITION") {
             let position = [
                 ext_number(line, "X")?,
@@ -464,6 +475,17 @@ impl Interpreter {
             feed,
             rapid: false,
         }))
+    }
+
+    /// A command the firmware lacks (`without` says why): Klipper answers "Unknown command" and goes on, so the
+    /// line does nothing here either, and says so.
+    fn unknown_command(&mut self, line: &Line<'_>, without: &str) -> Option<Command> {
+        let name = line.command_text().unwrap_or_default().to_ascii_uppercase();
+        let message = format!(
+            "Klipper has no {name} {without}: it answers \"Unknown command\" and goes on, so this line does nothing"
+        );
+        self.warn(line.command_span(), WarningKind::UnknownCommand, &message);
+        None
     }
 
     /// Warns about letters outside `allowed` and about repeated letters.

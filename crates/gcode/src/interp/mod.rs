@@ -24,4 +24,4 @@ mod tests;
 pub use arcs::MAX_ARC_TURNS;
 pub use commands::Commands;
 pub(crate) use fast::FastSink;
-pub use state::{Interpreter, InterpreterOptions};
+pub use state::{CommandSet, Interpreter, InterpreterOptions};

@@ -18,6 +18,29 @@ pub struct InterpreterOptions {
     /// Arcs given by their radius (`G2 … R`), as Marlin and RepRapFirmware read them. Klipper refuses them ("G2/G3
     /// does not support R moves"), so a job planned as Klipper plans refuses them too.
     pub radius_arcs: bool,
+    /// The optional commands the firmware has.
+    pub commands: CommandSet,
+}
+
+/// Which optional commands the firmware has. One it lacks is skipped with a warning where the firmware answers
+/// "Unknown command" and goes on (Klipper), and refused where the firmware refuses it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CommandSet {
+    /// G2/G3 and G17–G19 (Klipper: only with `[gcode_arcs]`).
+    pub arcs: bool,
+    /// G20, inch units (Klipper refuses it: "Machine does not support G20 (inches) command").
+    pub inches: bool,
+    /// `SET_KINEMATIC_POSITION` (Klipper: only with `[force_move] enable_force_move: True`).
+    pub kinematic_position: bool,
+}
+
+impl CommandSet {
+    /// Every command this reader knows.
+    pub const ALL: CommandSet = CommandSet {
+        arcs: true,
+        inches: true,
+        kinematic_position: true,
+    };
 }
 
 impl Default for InterpreterOptions {
@@ -26,15 +49,21 @@ impl Default for InterpreterOptions {
             initial_speed: 25.0,
             initial_position: [0.0; 4],
             radius_arcs: true,
+            commands: CommandSet::ALL,
         }
     }
 }
 
 impl InterpreterOptions {
-    /// As Klipper's `gcode_move` and `gcode_arcs` read G-code.
-    pub fn klipper() -> Self {
+    /// As Klipper's `gcode_move` and `gcode_arcs` read G-code, on a printer whose configuration gives `commands`
+    /// (inch units are never among them).
+    pub fn klipper(commands: CommandSet) -> Self {
         InterpreterOptions {
             radius_arcs: false,
+            commands: CommandSet {
+                inches: false,
+                ..commands
+            },
             ..InterpreterOptions::default()
         }
     }
@@ -72,6 +101,8 @@ pub struct Interpreter {
     pub(super) warnings: Warnings,
     /// See [`InterpreterOptions::radius_arcs`].
     pub(super) radius_arcs: bool,
+    /// See [`InterpreterOptions::commands`].
+    pub(super) commands: CommandSet,
     /// The G-code offsets `SET_GCODE_OFFSET` set (Klipper's `homing_position`): what G28 restores.
     pub(super) homing: Position,
 }
@@ -98,6 +129,7 @@ impl Interpreter {
             pending_layer: None,
             warnings: Warnings::default(),
             radius_arcs: options.radius_arcs,
+            commands: options.commands,
             homing: [0.0; 4],
         }
     }

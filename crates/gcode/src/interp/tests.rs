@@ -454,3 +454,71 @@ fn gcode_offsets_as_klipper_applies_them() {
     assert_eq!((m[0].target[0], m[0].target[1]), (0.0, 2.0));
     assert_eq!(interp.base_position()[..2], [0.0, 2.0]);
 }
+
+/// What a stream gave: each command or error, and each warning's line and kind.
+type Read = (Vec<Result<Command, ErrorKind>>, Vec<(u64, WarningKind)>);
+
+/// Every command, error and warning of `text` read as Klipper reads it with `commands`, on the fast path or not.
+fn klipper_stream(text: &str, commands: CommandSet, fast_lines: bool) -> Read {
+    let reader = Reader::new(text.as_bytes(), "t");
+    let mut stream = Commands::new(reader, InterpreterOptions::klipper(commands));
+    stream.fast_lines = fast_lines;
+    let out = stream
+        .by_ref()
+        .map(|c| c.map(|c| c.value).map_err(|e| e.kind))
+        .collect();
+    let warnings = stream
+        .take_warnings()
+        .iter()
+        .map(|w| (w.span.line, w.kind))
+        .collect();
+    (out, warnings)
+}
+
+#[test]
+fn commands_klipper_lacks_are_skipped_with_a_warning_on_both_paths() {
+    let text = "G1 X10 Y0 F600\nG2 X10 Y0 I-5 J0\nG3 X10 Y0 I-5 J0 E1\nG18\nSET_KINEMATIC_POSITION X=1\nG1 X20\n";
+    let without = CommandSet {
+        arcs: false,
+        kinematic_position: false,
+        inches: true,
+    };
+    for fast_lines in [true, false] {
+        let (out, warnings) = klipper_stream(text, without, fast_lines);
+        let skipped: Vec<(u64, WarningKind)> =
+            (2..=5).map(|l| (l, WarningKind::UnknownCommand)).collect();
+        assert_eq!(warnings, skipped, "fast path {fast_lines}");
+        let targets: Vec<[f64; 4]> = out
+            .iter()
+            .map(|c| match c {
+                Ok(Command::Move(m)) => m.target,
+                other => panic!("only the two moves are left, not {other:?}"),
+            })
+            .collect();
+        assert_eq!(targets, [[10.0, 0.0, 0.0, 0.0], [20.0, 0.0, 0.0, 0.0]]);
+        let (out, warnings) = klipper_stream(text, CommandSet::ALL, fast_lines);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        assert_eq!(
+            out.iter()
+                .filter(|c| matches!(c, Ok(Command::Arc(_))))
+                .count(),
+            2
+        );
+    }
+}
+
+#[test]
+fn klipper_refuses_inch_units_whatever_the_command_set_says() {
+    let (out, _) = klipper_stream("G21\nG20\nG1 X1\n", CommandSet::ALL, true);
+    assert_eq!(out.first().map(Result::is_err), Some(true), "{out:?}");
+    assert!(
+        matches!(out[0], Err(ErrorKind::InchUnitsUnsupported)),
+        "{out:?}"
+    );
+    let (commands, _) = run("G20\nG1 X1\n");
+    assert_eq!(
+        moves(&commands)[0].target[0],
+        25.4,
+        "other firmware reads inches"
+    );
+}

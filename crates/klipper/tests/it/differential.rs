@@ -215,3 +215,62 @@ fn gcode_offsets_are_applied_as_klipper_applies_them() {
         "Move out of range: X310.000 Y10.000",
     );
 }
+
+/// G20: Klipper refuses inch units ("Machine does not support G20 (inches) command"), and `check` refuses the same
+/// line, where jointspace's reader would otherwise switch to inches.
+#[test]
+fn inch_units_are_refused_as_klipper_refuses_them() {
+    let gcode = "G28\nG1 X50 Y10 F3000\nG20\nG1 X2 Y2\n";
+    refused_alike(
+        "inch_units_are_refused_as_klipper_refuses_them",
+        gcode,
+        3,
+        "Machine does not support G20 (inches) command",
+    );
+}
+
+/// Without `[gcode_arcs]` Klipper has no G2/G3: it answers "Unknown command" and goes on. `check` says so at the
+/// line and skips the arc too, so both give the same print time (the arcs here would add more than 10 s).
+#[test]
+fn arcs_without_gcode_arcs_are_skipped_as_klipper_skips_them() {
+    let test = "arcs_without_gcode_arcs_are_skipped_as_klipper_skips_them";
+    let Some(hosts) = Hosts::get(test) else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let with_arcs = std::fs::read_to_string(example(dir.path(), "polar")).expect("example");
+    let without_arcs = with_arcs.replace("[gcode_arcs]\nresolution: 1.0\n", "");
+    assert_ne!(with_arcs, without_arcs, "the example has [gcode_arcs]");
+    let cfg = write(dir.path(), "no-arcs.cfg", &without_arcs);
+    let gcode = "SET_KINEMATIC_POSITION X=100 Y=0 Z=1\nG90\nG1 X100 Y0 F600\n\
+                 G2 X100 Y0 I-50 J0\nG3 X100 Y0 I-80 J0\nG1 X50 Y50\nM400\n";
+    let input = write(dir.path(), "input.gcode", gcode);
+    let (cfg_s, input_s) = (cfg.to_string_lossy(), input.to_string_lossy());
+    let check = cli_json(&["check", "-c", &cfg_s, &input_s, "--json"]);
+    let problems = check["problems"].as_array().expect("problems");
+    let skipped: Vec<u64> = problems
+        .iter()
+        .filter(|p| {
+            p["message"]
+                .as_str()
+                .is_some_and(|m| m.contains("Unknown command"))
+        })
+        .filter_map(|p| p["line"].as_u64())
+        .collect();
+    assert_eq!(skipped, [4, 5], "{problems:?}");
+    let cli = cli_json(&["run", "-c", &cfg_s, &input_s, "--klipper-batch", "--json"]);
+    let ours = cli["print_time_s"].as_f64().expect("print time");
+    let run = hosts.batch(KLIPPER, false, &cfg, &input, &dir.path().join("out"));
+    run.expect_success(test);
+    assert!(
+        run.log.contains("Unknown command:\"G2\""),
+        "{}",
+        tail(&run.log, 10)
+    );
+    let host = host_print_time(&run);
+    println!("{test}: jointspace run {ours:.4} s, Klipper with the plug-in {host:.3} s");
+    assert!(
+        (ours - host).abs() <= 1e-3 * host,
+        "{ours} s against the host's {host} s"
+    );
+}

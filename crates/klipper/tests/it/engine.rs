@@ -227,6 +227,12 @@ fn polar_print_with_offsets_matches_the_engine() {
             ),
             // The start pose X300 puts the arm 0.4 mm further out.
             ("position_max: 300", "position_max: 301"),
+            // Klipper's rule lets this bed (no angular limit) step at 533,000 steps/s near the centre: a board
+            // with 100 ns step pulses (TMC drivers) can, one with Klipper's default 2 µs cannot.
+            (
+                "gear_ratio: 80:16",
+                "gear_ratio: 80:16\nstep_pulse_duration: 0.0000001",
+            ),
         ],
         dir.path(),
         "printer.cfg",

@@ -4,6 +4,8 @@
 #   polar end to end   jointspace run            vs  Klipper's polar, batch mode   (../shared/bench, 228,920 moves)
 #   SCARA end to end   jointspace run, one core  vs  the FEKT-SCARA fork, one core (a Slic3r benchy, arcs, moved
 #                                                    into the FEKT arm's workspace)
+#   estimate           jointspace estimate      vs  klipper_estimator estimate (../shared/peers, MIT): the same
+#                                                    Cartesian files (PrusaSlicer vase + plant sign, 5 copies, 4.3 MB)
 #   plug-in overhead   Klipper + jointspace_polar (centre_slowdown: klipper: the same plan) vs Klipper's polar on
 #                      the bench; the FEKT fork + jointspace_scara vs its own SCARA module on the benchy
 # usage: bench/peers.sh [ROUNDS]      (default 3; needs ../shared; builds what it runs)
@@ -45,6 +47,26 @@ for line in open(sys.argv[1]):
 open(sys.argv[2], "w").write("".join(out))
 PY
 
+# klipper_estimator (timed with --format json: its human output did not finish on these files in 10 minutes),
+# built once from its pinned source (crates from the registry), with the Cartesian golden machine's
+# limits in its own format (extruder limits as Klipper derives them: 5 mm² over 3.5 mm filament of max_velocity/accel).
+KE_DIR=$ROOT/target/peers/klipper_estimator
+if [ ! -x "$KE_DIR/target/release/klipper_estimator" ]; then
+  mkdir -p "$ROOT/target/peers" && tar xzf "$SHARED/peers/klipper_estimator.tar.gz" -C "$ROOT/target/peers"
+  (cd "$KE_DIR" && cargo build --release -q)
+fi
+KE=$KE_DIR/target/release/klipper_estimator
+CART_CFG=$SHARED/golden/cartesian-prusa-minicube-arcs/printer.cfg
+cat > "$WORK/ke.json" <<'JSON'
+{ "max_velocity": 500, "max_acceleration": 3000, "minimum_cruise_ratio": 0.5, "square_corner_velocity": 5,
+  "instant_corner_velocity": 1, "mm_per_arc_segment": 1.0,
+  "move_checkers": [ {"axis_limiter": {"axis": [0, 0, 1], "max_velocity": 25, "max_accel": 30}},
+                     {"extruder_limiter": {"max_velocity": 259.81, "max_accel": 1559.1}} ] }
+JSON
+for _ in 1 2 3 4 5; do
+  cat "$SHARED/corpus/prusaslicer-2.7.4_spiral-vase.gcode" "$SHARED/corpus/prusaslicer-2.7.4_plant-sign_arcs.gcode"
+done > "$WORK/cartesian.gcode"
+
 seconds() { # command... -> wall seconds
   local start end
   start=$(date +%s.%N)
@@ -85,6 +107,11 @@ echo "machine: $(nproc) cores, $(uname -m), $(date -u +%Y-%m-%dT%H:%MZ); jointsp
 compare "polar end to end" jointspace klipper -- "$JOINTSPACE" run -c "$BENCH_CFG" "$BENCH" -- batch "$BENCH_CFG" "$BENCH" klipper
 compare "SCARA end to end 1core" jointspace fekt -- taskset -c 0 "$JOINTSPACE" run -c "$WORK/scara.cfg" "$WORK/benchy.gcode" \
   -- taskset -c 0 "$SHARED/klipper/batch.sh" "$WORK/scara.cfg" "$WORK/benchy.gcode" "$WORK/out" kalico-fekt
+compare "estimate, Cartesian" jointspace klipper_estimator -- "$JOINTSPACE" estimate -c "$CART_CFG" "$WORK/cartesian.gcode" \
+  -- "$KE" --config_file "$WORK/ke.json" estimate --format json "$WORK/cartesian.gcode"
+printf '%-22s   planned: jointspace %s s, klipper_estimator %s s\n' "" \
+  "$("$JOINTSPACE" estimate --json -c "$CART_CFG" "$WORK/cartesian.gcode" 2>/dev/null | python3 -c 'import json,sys; print(round(json.load(sys.stdin)["total"], 3))')" \
+  "$("$KE" --config_file "$WORK/ke.json" estimate --format json "$WORK/cartesian.gcode" | python3 -c 'import json,sys; d=json.load(sys.stdin); print(round(sum(s["total_time"] for s in d["sequences"]), 3))')"
 compare "plug-in, polar" builtin plugin -- batch "$BENCH_CFG" "$BENCH" klipper -- batch "$WORK/polar-plugin.cfg" "$BENCH" klipper
 compare "plug-in, SCARA" builtin plugin -- batch "$WORK/scara.cfg" "$WORK/benchy.gcode" kalico-fekt \
   -- batch "$WORK/scara-plugin.cfg" "$WORK/benchy.gcode" kalico-fekt

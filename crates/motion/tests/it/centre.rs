@@ -103,7 +103,7 @@ fn cartesian_config() -> String {
     };
     format!(
         "{}{}{}[printer]\nkinematics: cartesian\nmax_velocity: 300\nmax_accel: {ACCEL}\nmax_z_velocity: 300\n\
-         max_z_accel: {ACCEL}\n",
+         max_z_accel: {ACCEL}\n[force_move]\nenable_force_move: True\n[gcode_arcs]\n",
         axis("x"),
         axis("y"),
         axis("z")

@@ -11,6 +11,7 @@ pub(crate) const MAX_ALPHA: f64 = 200.0; // rad/s²
 const MAX_VELOCITY: f64 = 300.0;
 pub(crate) const CLOCK_HZ: f64 = 16e6;
 
+/// The polar machine of these tests, with the commands they use (`SET_KINEMATIC_POSITION`, G2/G3).
 pub(crate) fn polar_config() -> String {
     format!(
         "[stepper_bed]\nstep_pin: PF0\ndir_pin: PF1\nmicrosteps: 16\ngear_ratio: 80:16\n\
@@ -19,7 +20,8 @@ pub(crate) fn polar_config() -> String {
          [stepper_z]\nstep_pin: PL3\ndir_pin: PL1\nmicrosteps: 16\nrotation_distance: 8\nendstop_pin: ^PD3\n\
          position_endstop: 0.5\nposition_max: 200\n\
          [printer]\nkinematics: polar\nmax_velocity: {MAX_VELOCITY}\nmax_accel: 3000\n\
-         max_angular_velocity: {MAX_OMEGA}\nmax_angular_accel: {MAX_ALPHA}\n"
+         max_angular_velocity: {MAX_OMEGA}\nmax_angular_accel: {MAX_ALPHA}\n\
+         [force_move]\nenable_force_move: True\n[gcode_arcs]\n"
     )
 }
 

@@ -1,4 +1,4 @@
-//! Fuzz target `klipper_abi`: the Klipper plug-in's C interface driven as `klipper/jointspace.py` drives it.
+//! Fuzz target `klipper_abi`: the Klipper plug-in's C interface driven as `klipper/jointspace_klipper/jointspace.py` drives it.
 //!
 //! A machine from one of `klipper/examples/` (its `[printer]` and `[stepper_*]` sections, as the plug-in hands them
 //! over) with fuzz-chosen key values, absurd numbers included; then moves whose ends are biased to the poses where

@@ -15,10 +15,18 @@ mod timing;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+/// `jointspace --version`: the release and the commit it was built from (build.rs; "unknown" without git).
+const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (",
+    env!("JOINTSPACE_COMMIT"),
+    ")"
+);
+
 #[derive(Debug, Parser)]
 #[command(
     name = "jointspace",
-    version,
+    version = VERSION,
     about = "Motion host and toolkit for SCARA and polar 3D printers"
 )]
 struct Cli {

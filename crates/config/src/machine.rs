@@ -137,7 +137,7 @@ const INTERPRETED_SECTIONS: [&str; 2] = ["printer", "gcode_arcs"];
 
 /// Keys that other Klipper modules read from the sections we interpret (not typos).
 const KEYS_READ_ELSEWHERE: &[&str] = &[
-    // the Klipper plug-in (klipper/jointspace.py): which whole-move rule check_move uses near the polar centre
+    // the Klipper plug-in (klipper/jointspace_klipper/jointspace.py): which whole-move rule check_move uses near the polar centre
     "centre_slowdown",
     // toolhead
     "buffer_time_low",

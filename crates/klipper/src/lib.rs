@@ -3,10 +3,10 @@
 //! Klipper generates steps by asking a per-stepper `struct stepper_kinematics` for the motor position at trial
 //! times (`klippy/chelper/itersolve.c`); this library allocates such structs with its own callbacks (the
 //! `kinematics` crate's geometry, plain data, reentrant, no allocation), and answers the plain questions the
-//! Python kinematics class (`klipper/jointspace_kinematics.py`) asks: forward kinematics, whether a whole move can be made
+//! Python kinematics class (`klipper/jointspace_klipper/jointspace_kinematics.py`) asks: forward kinematics, whether a whole move can be made
 //! and how fast, the pose to report. Klipper's itersolve and step compression do the rest.
 //!
-//! The C interface is declared in `klipper/jointspace.h`. Conventions: functions return 0 on success and a
+//! The C interface is declared in `klipper/jointspace_klipper/jointspace.h`. Conventions: functions return 0 on success and a
 //! negative number on failure, with the reason written into a caller's buffer; nothing here panics across the
 //! boundary (an `extern "C"` function would abort the host rather than unwind: every entry point runs its work
 //! through [`guarded`], which turns a panic into the function's failure value), and no function returns NaN.
@@ -19,6 +19,7 @@
 
 pub mod abi;
 pub mod boundary;
+pub mod identity;
 pub mod machine;
 pub mod pieces;
 pub mod scan;
@@ -31,18 +32,6 @@ use abi::StepperKinematics;
 use boundary::{NO_BUFFER, guarded, read3, usable_move, usable_point, write_message};
 use machine::{Machine, MoveVerdict};
 use stepper::{Solver, allocate};
-
-/// The library's version, `"jointspace-klipper X.Y.Z"`.
-const VERSION: &CStr = concat_c_version();
-
-const fn concat_c_version() -> &'static CStr {
-    match CStr::from_bytes_with_nul(
-        concat!("jointspace-klipper ", env!("CARGO_PKG_VERSION"), "\0").as_bytes(),
-    ) {
-        Ok(v) => v,
-        Err(_) => c"jointspace-klipper",
-    }
-}
 
 /// The verdict as Klipper may apply it: caps only for a move requested at a positive speed and acceleration (else
 /// the segment alone is checked), and then positive and finite — Klipper divides by them, so a move whose motor
@@ -67,64 +56,6 @@ fn positive_caps(verdict: MoveVerdict, speed: f64, accel: f64) -> Result<MoveVer
 fn machine<'a>(m: *const Machine) -> Option<&'a Machine> {
     // SAFETY: a non-null handle comes from `jointspace_machine_new` and lives until `jointspace_machine_free`.
     unsafe { m.as_ref() }
-}
-
-const HEADER: &[u8] = include_bytes!("../../../klipper/jointspace.h");
-
-/// FNV-1a (64-bit) of `klipper/jointspace.h` as this library was built from it.
-const HEADER_HASH: u64 = fnv1a(HEADER);
-
-// The header names the version it belongs to (the plug-in refuses a library of another version): a version bump
-// without the header's fails the build rather than every printer's start.
-const _: () = assert!(
-    contains(
-        HEADER,
-        concat!(
-            "#define JOINTSPACE_VERSION \"",
-            env!("CARGO_PKG_VERSION"),
-            "\"\n"
-        )
-        .as_bytes()
-    ),
-    "klipper/jointspace.h's JOINTSPACE_VERSION is not this crate's version"
-);
-
-const fn contains(haystack: &[u8], needle: &[u8]) -> bool {
-    let mut start = 0;
-    while start + needle.len() <= haystack.len() {
-        let mut i = 0;
-        while i < needle.len() && haystack[start + i] == needle[i] {
-            i += 1;
-        }
-        if i == needle.len() {
-            return true;
-        }
-        start += 1;
-    }
-    false
-}
-
-const fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
-    let mut i = 0;
-    while i < bytes.len() {
-        hash = (hash ^ bytes[i] as u64).wrapping_mul(0x0100_0000_01b3);
-        i += 1;
-    }
-    hash
-}
-
-/// The hash of the C interface's header this library was built from: the Python side hashes the header it hands
-/// cffi and refuses a library built from another (a plug-in updated without rebuilding its library).
-#[unsafe(no_mangle)]
-pub extern "C" fn jointspace_header_hash() -> u64 {
-    HEADER_HASH
-}
-
-/// The library version string (static).
-#[unsafe(no_mangle)]
-pub extern "C" fn jointspace_version() -> *const c_char {
-    guarded(c"".as_ptr(), NO_BUFFER, || VERSION.as_ptr())
 }
 
 /// Klipper's `struct stepper_kinematics` or `struct move` (`name` without `struct`) as this library was built for

@@ -10,7 +10,7 @@ use calibrate::scan::{
 };
 use calibrate::sweep::{HallAdc, SweepParams, SweepSample, detect};
 
-/// Mirror of `struct jointspace_hall_scan` (`klipper/jointspace.h`): the `[jointspace] hall_*` settings.
+/// Mirror of `struct jointspace_hall_scan` (`klipper/jointspace_klipper/jointspace.h`): the `[jointspace] hall_*` settings.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HallScanSettings {

@@ -1,4 +1,4 @@
-//! `klipper/jointspace.h` against the library it declares: every function the header declares is exported by
+//! `klipper/jointspace_klipper/jointspace.h` against the library it declares: every function the header declares is exported by
 //! `crates/klipper/src` with the same arguments, and every exported function is declared. cffi trusts the header
 //! blindly (a missing argument or a `double` read as an `int` is a wrong number, not an error), and the header hash
 //! only proves the library was built from this header, not that the header says what the library does.
@@ -251,7 +251,8 @@ fn library_functions(src: &Path) -> BTreeMap<String, Signature> {
 #[test]
 fn the_header_declares_exactly_what_the_library_exports() {
     let root = workspace_root();
-    let header = std::fs::read_to_string(root.join("klipper/jointspace.h")).expect("header");
+    let header = std::fs::read_to_string(root.join("klipper/jointspace_klipper/jointspace.h"))
+        .expect("header");
     let declared = c_functions(&header);
     let exported = library_functions(&root.join("crates/klipper/src"));
     assert!(
@@ -331,7 +332,8 @@ fn body<'a>(text: &'a str, opening: &str) -> &'a str {
 fn the_hall_scan_settings_have_the_same_fields() {
     let root = workspace_root();
     let header = strip_comments(
-        &std::fs::read_to_string(root.join("klipper/jointspace.h")).expect("header"),
+        &std::fs::read_to_string(root.join("klipper/jointspace_klipper/jointspace.h"))
+            .expect("header"),
     );
     let mut declared = Vec::new();
     for line in body(&header, "struct jointspace_hall_scan {").split(';') {

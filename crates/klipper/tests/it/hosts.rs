@@ -38,6 +38,9 @@ pub fn shared() -> PathBuf {
 pub struct Hosts {
     dir: PathBuf,
     library: PathBuf,
+    /// Whether runs name `library` (JOINTSPACE_LIBRARY); without it the plug-in loads the library it was installed
+    /// with (the installed package's).
+    name_library: bool,
 }
 
 impl Hosts {
@@ -79,6 +82,16 @@ impl Hosts {
         Hosts {
             dir: dir.to_path_buf(),
             library: self.library.clone(),
+            name_library: true,
+        }
+    }
+
+    /// Host trees from another folder laid out as `dir()` is, whose plug-in loads the library it was installed with.
+    pub fn installed_in(dir: &Path) -> Hosts {
+        Hosts {
+            dir: dir.to_path_buf(),
+            library: PathBuf::new(),
+            name_library: false,
         }
     }
 
@@ -98,7 +111,10 @@ impl Hosts {
             .args([cfg, gcode, out])
             .arg(host)
             .env("KLIP_DIR", &self.dir)
-            .env("JOINTSPACE_LIBRARY", &self.library);
+            .env_remove("JOINTSPACE_LIBRARY");
+        if self.name_library {
+            command.env("JOINTSPACE_LIBRARY", &self.library);
+        }
         if exact {
             command.env("EXACT", "1").env("STEPS", "1");
         }
@@ -126,7 +142,11 @@ fn prepare() -> Option<Hosts> {
     cargo_build("klipper");
     let library = target_dir().join("libjointspace_klipper.so");
     assert!(library.is_file(), "{} was not built", library.display());
-    let hosts = Hosts { dir, library };
+    let hosts = Hosts {
+        dir,
+        library,
+        name_library: true,
+    };
     for host in [KLIPPER, KALICO, KALICO_FEKT] {
         for exact in [false, true] {
             install(&hosts.tree(host, exact), false);
@@ -149,7 +169,8 @@ pub fn cargo_build(package: &str) {
     assert!(status.success(), "cargo build -p {package} failed");
 }
 
-/// `klipper/install.sh --host-dir TREE --no-build [--uninstall]`, which must succeed.
+/// `klipper/install.sh --host-dir TREE --no-build [--uninstall]` (developer mode: the plug-in linked from this source
+/// tree), which must succeed.
 pub fn install(tree: &Path, uninstall: bool) {
     let mut command = Command::new(workspace_root().join("klipper/install.sh"));
     command.arg("--host-dir").arg(tree).arg("--no-build");

@@ -8,7 +8,7 @@ use std::process::Command;
 
 use crate::hosts::{KLIPPER, install, shared, workspace_root};
 
-fn git(tree: &Path, args: &[&str]) -> String {
+pub fn git(tree: &Path, args: &[&str]) -> String {
     let output = Command::new("git")
         .args([
             "-c",
@@ -33,13 +33,14 @@ fn git(tree: &Path, args: &[&str]) -> String {
 /// The plug-in's modules: `jointspace.py` and every `jointspace_*.py` beside it that it loads (all but the stand-in
 /// install.sh links as the kinematics modules).
 fn plugin_modules() -> Vec<String> {
-    let mut modules: Vec<String> = std::fs::read_dir(workspace_root().join("klipper"))
-        .expect("klipper/")
-        .flatten()
-        .filter_map(|e| e.file_name().into_string().ok())
-        .filter(|n| n.starts_with("jointspace") && n.ends_with(".py"))
-        .filter(|n| n != "jointspace_missing_section.py")
-        .collect();
+    let mut modules: Vec<String> =
+        std::fs::read_dir(workspace_root().join("klipper/jointspace_klipper"))
+            .expect("klipper/jointspace_klipper/")
+            .flatten()
+            .filter_map(|e| e.file_name().into_string().ok())
+            .filter(|n| n.starts_with("jointspace") && n.ends_with(".py"))
+            .filter(|n| n != "jointspace_missing_section.py")
+            .collect();
     modules.sort();
     assert!(modules.len() > 2, "{modules:?}");
     modules
@@ -74,7 +75,7 @@ fn unpack(host: &str, parent: &Path) -> Option<PathBuf> {
 }
 
 /// `tree` as a git repository of its own, everything committed.
-fn commit_all(tree: &Path) {
+pub fn commit_all(tree: &Path) {
     git(tree, &["init", "-q"]);
     git(tree, &["add", "-A"]);
     git(tree, &["commit", "-qm", "pristine"]);
@@ -124,7 +125,7 @@ fn install_and_uninstall_in(tree: &Path, host: &str, module_folder: &str) {
         assert_eq!(
             target.canonicalize().expect("link target"),
             workspace_root()
-                .join("klipper")
+                .join("klipper/jointspace_klipper")
                 .join(module)
                 .canonicalize()
                 .expect("module")
@@ -256,7 +257,7 @@ fn a_foreign_jointspace_py_is_left_alone() {
         let (ok, text) = run_install(&tree, false);
         assert!(!ok, "install replaced {}: {text}", foreign.display());
         assert!(
-            text.contains("exists and is not a link to this plug-in"),
+            text.contains("exists and install.sh did not put it there"),
             "{text}"
         );
         assert!(
@@ -268,7 +269,7 @@ fn a_foreign_jointspace_py_is_left_alone() {
         );
         let (ok, text) = run_install(&tree, true);
         assert!(ok, "{text}");
-        assert!(text.contains("not a link to this plug-in"), "{text}");
+        assert!(text.contains("install.sh did not put it there"), "{text}");
         if as_link {
             assert_eq!(std::fs::read_link(&foreign).expect("link kept"), elsewhere);
         } else {

@@ -5,9 +5,11 @@
 # This file may be distributed under the terms of the GNU GPLv3 license, or (at your option) any later
 # version. See LICENSE in this folder.
 #
-# install.sh links this file as klippy/kinematics/jointspace_polar.py and jointspace_scara.py. Klipper imports it
-# only when printer.cfg names one of those kinematics and has no [jointspace] section: that section loads
-# jointspace.py, which registers the real kinematics before [printer] imports them.
+# jointspace-klipper: written by install.sh
+# install.sh copies (or, from a source tree, links) this file as klippy/kinematics/jointspace_polar.py and
+# jointspace_scara.py; --uninstall removes the copies, found by the line above. Klipper imports it only when
+# printer.cfg names one of those kinematics and has no [jointspace] section: that section loads jointspace.py, which
+# registers the real kinematics before [printer] imports them.
 
 
 def load_kinematics(toolhead, config):

@@ -5,7 +5,8 @@
 # This file may be distributed under the terms of the GNU GPLv3 license, or (at your option) any later
 # version. See LICENSE in this folder.
 #
-# Loaded from a [jointspace] config section (klippy/extras/ on Klipper, klippy/plugins/ on Kalico), it
+# Loaded from a [jointspace] config section (klippy/extras/ on Klipper, klippy/plugins/ on Kalico: the loader of the
+# installed jointspace-klipper package, or from a source tree a link to this file), it
 # registers the kinematics "jointspace_polar" and "jointspace_scara" before [printer] imports them. The
 # machine itself (geometry, offsets, limits, reach) lives in libjointspace_klipper.so, built from the same
 # printer.cfg keys the jointspace command line reads; Klipper's itersolve calls that library for every step.
@@ -27,7 +28,7 @@ PACKAGE = __name__.rpartition(".")[0]
 
 
 def _load_sibling(name):
-    # By path, from beside the real file (install.sh links only this folder's files): the hosts load this file
+    # By path, from beside the real file (the installed package, or the source tree's folder): the hosts load this file
     # under different package names (Kalico's plugins as klippy.extras.*), so a relative import would look in the
     # wrong package. Named inside this file's package, so a sibling tells Kalico from Klipper as this file does.
     qualified = PACKAGE + "." + name if PACKAGE else name
@@ -65,7 +66,9 @@ class Jointspace:
         self.printer = config.get_printer()
         # Fail early, naming the path, if the library is missing or was built for another host.
         ffi, lib = library.load_library(config)
-        self.version = ffi.string(lib.jointspace_version()).decode()
+        # "jointspace-klipper X.Y.Z" and the commit it was built from, for printer.jointspace (Mainsail, macros).
+        self.version = ffi.string(lib.jointspace_version()).decode().rpartition(" ")[2]
+        self.commit = ffi.string(lib.jointspace_commit()).decode()
         self.splitter = jointspace_splitter.MoveSplitter(config, kinematics.JointspaceKinematics)
         _register("jointspace_polar", load_kinematics_polar)
         _register("jointspace_scara", load_kinematics_scara)
@@ -76,7 +79,7 @@ class Jointspace:
             self.centre_scan = jointspace_scan.HallCentreScan(config, (ffi, lib))
 
     def get_status(self, eventtime):
-        status = {"version": self.version,
+        status = {"version": self.version, "commit": self.commit,
                   "split_moves": self.splitter.active and bool(self.splitter.cut_spans)}
         if self.centre_scan is not None:
             status["centre_scan"] = self.centre_scan.last_result

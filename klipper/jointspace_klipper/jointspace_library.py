@@ -37,9 +37,17 @@ def _cdef_text():
         return "".join(l for l in f if not l.lstrip().startswith("#"))
 
 
+# Where the plug-in's own library is: in the installed package (the wheel: maturin names it after the package's
+# `native` module), beside the modules, or in the source tree's cargo build (install.sh --dev).
+PACKAGED_LIBRARIES = (os.path.join("native", "libnative.so"), LIBRARY_NAME,
+                      os.path.join("..", "..", "target", "release", LIBRARY_NAME))
+REINSTALL = "reinstall the plug-in with jointspace's klipper/install.sh"
+
+
 def _packaged_library():
-    # The library built with this plug-in (beside it, or in its checkout's target/release), or None.
-    for path in (os.path.join(HERE, LIBRARY_NAME), os.path.join(HERE, "..", "target", "release", LIBRARY_NAME)):
+    # The library installed with this plug-in, or None.
+    for relative in PACKAGED_LIBRARIES:
+        path = os.path.join(HERE, relative)
         if os.path.isfile(path):
             return os.path.realpath(path)
     return None
@@ -56,16 +64,16 @@ def _library_path(config):
         if path:
             if not os.path.isfile(path):
                 raise config.error(
-                    "jointspace: %s names %s, which does not exist (build it with klipper/install.sh, "
-                    "or remove the setting to use the library this plug-in was installed with)" % (where, path))
+                    "jointspace: %s names %s, which does not exist (remove the setting to use the library this "
+                    "plug-in was installed with)" % (where, path))
             if packaged and os.path.realpath(path) != packaged:
                 logging.info("jointspace: %s names %s instead of the plug-in's own %s", where, path, packaged)
             return os.path.realpath(path)
     if packaged:
         return packaged
     raise config.error(
-        "jointspace: %s not found (run klipper/install.sh, or set "
-        "[jointspace] library: /path/to/%s)" % (LIBRARY_NAME, LIBRARY_NAME))
+        "jointspace: %s not found beside %s (%s, or set [jointspace] library: /path/to/%s)"
+        % (LIBRARY_NAME, HERE, REINSTALL, LIBRARY_NAME))
 
 
 def _header_hash():
@@ -102,8 +110,7 @@ def _check_version(config, ffi, lib, path):
     ours = "jointspace-klipper " + _header_version()
     if theirs != ours:
         raise config.error(
-            "jointspace: %s is %s, this plug-in is %s: rebuild the library from this checkout "
-            "(klipper/install.sh) and restart" % (path, theirs, ours))
+            "jointspace: %s is %s, this plug-in is %s: %s and restart" % (path, theirs, ours, REINSTALL))
 
 
 def _check_built_from_this_header(config, lib, path):
@@ -113,8 +120,8 @@ def _check_built_from_this_header(config, lib, path):
         theirs = None
     if theirs != _header_hash():
         raise config.error(
-            "jointspace: %s was built from another version of jointspace.h than this plug-in's: rebuild it "
-            "(klipper/install.sh, or cargo build --release -p klipper) and restart" % (path,))
+            "jointspace: %s was built from another version of jointspace.h than this plug-in's: %s (from a "
+            "source tree: cargo build --release -p klipper) and restart" % (path, REINSTALL))
 
 
 # Klipper's headers that declare the structs the library shares with the host (list.h: struct move's list node).

@@ -14,6 +14,8 @@ struct stepper_kinematics;
 struct jointspace_machine;
 
 const char *jointspace_version(void);
+/* The commit the library was built from: 12 hex digits, or "unknown" (built without git). */
+const char *jointspace_commit(void);
 /* FNV-1a hash of this file's bytes as the library was built from it: jointspace.py refuses another. */
 unsigned long long jointspace_header_hash(void);
 /* Klipper's struct stepper_kinematics or struct move ("stepper_kinematics", "move") as the library was built for

@@ -11,11 +11,14 @@
 //!
 //! Units inside are mm, s and rad. Keys that take degrees in the file (SCARA `shoulder_zero`,
 //! `elbow_zero`, `shoulder_min`/`shoulder_max`, `elbow_min`/`elbow_max`) are converted to radians.
-//! Rotary steppers (polar `stepper_bed`, SCARA `stepper_a`/`stepper_b`) measure radians: their
+//! Five-bar `left_zero`/`right_zero` too.
+//! Rotary steppers (polar `stepper_bed`, SCARA `stepper_a`/`stepper_b`, five-bar `stepper_left`/`stepper_right`)
+//! measure radians: their
 //! `rotation_distance` is 2π and `gear_ratio` is required, as in Klipper.
 
 mod document;
 mod error;
+mod fivebar;
 mod machine;
 mod parse;
 mod span;

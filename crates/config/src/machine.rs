@@ -21,6 +21,8 @@ pub enum KinematicsKind {
     Cartesian,
     Polar,
     Scara,
+    /// The five-bar (parallel) SCARA.
+    Fivebar,
 }
 
 impl KinematicsKind {
@@ -29,6 +31,7 @@ impl KinematicsKind {
             KinematicsKind::Cartesian => "cartesian",
             KinematicsKind::Polar => "polar",
             KinematicsKind::Scara => "scara",
+            KinematicsKind::Fivebar => "fivebar",
         }
     }
 }
@@ -124,7 +127,7 @@ pub struct MachineConfig {
     pub force_move: bool,
     /// Every stepper: the kinematics' steppers in their order, then the extruder's.
     pub steppers: Vec<StepperConfig>,
-    /// SCARA `home_position` (x, y[, z] in mm), the pose the FEKT-SCARA module declares when homing.
+    /// SCARA and five-bar `home_position` (x, y[, z] in mm), the pose the FEKT-SCARA module declares when homing.
     pub home_position: Option<Vec<f64>>,
     /// The whole parsed file, for sections this struct does not interpret.
     pub document: ConfigDocument,
@@ -221,6 +224,7 @@ impl MachineConfig {
                 None,
             ),
             KinematicsKind::Scara => read_scara(&document, printer, &limits, &mut steppers)?,
+            KinematicsKind::Fivebar => read_fivebar(&document, printer, &limits, &mut steppers)?,
         };
         let extruder = document
             .section("extruder")
@@ -310,6 +314,7 @@ fn read_kinematics_kind(printer: &Section) -> Result<KinematicsKind, ConfigError
         // The names the Klipper/Kalico plug-in registers, so one printer.cfg serves the printer and the CLI.
         "polar" | "jointspace_polar" => Ok(KinematicsKind::Polar),
         "scara" | "jointspace_scara" => Ok(KinematicsKind::Scara),
+        "fivebar" => Ok(KinematicsKind::Fivebar),
         _ => Err(ConfigError::UnsupportedKinematics {
             span: Box::new(
                 printer
@@ -337,7 +342,8 @@ fn read_limits(
         printer.get_f64_or("max_z_velocity", max_velocity, positive.max(max_velocity))?;
     let max_z_accel = printer.get_f64_or("max_z_accel", max_accel, positive.max(max_accel))?;
     let polar = kinematics == KinematicsKind::Polar;
-    let scara = kinematics == KinematicsKind::Scara;
+    // Both arms' joints: the SCARA's and the five-bar's.
+    let scara = matches!(kinematics, KinematicsKind::Scara | KinematicsKind::Fivebar);
     let only_if = |wanted: bool, key: &str| -> Result<Option<f64>, ConfigError> {
         if wanted {
             printer.get_f64_opt(key, positive)
@@ -533,6 +539,31 @@ fn read_scara(
         )?,
     };
     Ok((MachineParams::Scara(params), read_home_position(printer)?))
+}
+
+/// Five-bar: `stepper_left`, `stepper_right` (rotary rails, degrees in the file) and `stepper_z`; the keys are read in
+/// `fivebar.rs`.
+fn read_fivebar(
+    document: &ConfigDocument,
+    printer: &Section,
+    limits: &PrinterLimits,
+    steppers: &mut Vec<StepperConfig>,
+) -> Result<(MachineParams, Option<Vec<f64>>), ConfigError> {
+    let (mm, rail) = MM_RAIL;
+    let rad = StepperUnits::Radians;
+    let read = add_steppers(
+        document,
+        KinematicsKind::Fivebar,
+        [
+            ("stepper_left", rad, rail),
+            ("stepper_right", rad, rail),
+            ("stepper_z", mm, rail),
+        ],
+        limits,
+        steppers,
+    )?;
+    let params = crate::fivebar::read_fivebar(printer, &read)?;
+    Ok((MachineParams::Fivebar(params), read_home_position(printer)?))
 }
 
 /// `elbow_coupling` (c) directly, or FEKT-SCARA's `ecr` (c = 1/ecr); both given must agree (to 1e-6,

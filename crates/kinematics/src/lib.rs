@@ -1,4 +1,4 @@
-//! Machine kinematics: Cartesian, polar and SCARA printers behind one small trait.
+//! Machine kinematics: Cartesian, polar, SCARA and five-bar printers behind one small trait.
 //!
 //! Units: mm for lengths, radians for angles; motor positions are in the motor's own unit (mm or rad).
 //! Nothing here reads files or G-code: machines are built from the plain parameter structs in [`params`],
@@ -7,6 +7,7 @@
 mod angle;
 pub mod cartesian;
 mod common;
+pub mod fivebar;
 pub mod params;
 pub mod polar;
 pub mod scara;
@@ -138,6 +139,32 @@ pub enum ReachError {
         sin_q2: f64,
         margin: f64,
     },
+    #[error("({}, {}) is out of the {arm} arm's reach: {} mm from its base joint, which reaches from {} to {} mm", readable(*x), readable(*y), readable(*distance), readable(*min), readable(*max))]
+    ArmReach {
+        arm: &'static str,
+        x: f64,
+        y: f64,
+        distance: f64,
+        min: f64,
+        max: f64,
+    },
+    #[error("({}, {}) is too close to the {arm} arm's singular pose, straight or folded (|sin| of its elbow angle {sin:.4}, margin {margin:.4})", readable(*x), readable(*y))]
+    ArmSingular {
+        arm: &'static str,
+        x: f64,
+        y: f64,
+        sin: f64,
+        margin: f64,
+    },
+    #[error("({}, {}) is too close to the parallel singularity, where the distal links are in line and the nozzle loses stiffness (|sin| of their angle {sin:.4}, margin {margin:.4})", readable(*x), readable(*y))]
+    ParallelSingular {
+        x: f64,
+        y: f64,
+        sin: f64,
+        margin: f64,
+    },
+    #[error("the elbows are {} mm apart: the distal links join only between {} and {} mm", readable(*distance), readable(*min), readable(*max))]
+    ElbowsApart { distance: f64, min: f64, max: f64 },
     #[error("({}, {}) is at the rotation centre, where the bed angle is undefined", readable(*x), readable(*y))]
     AtCentre { x: f64, y: f64 },
     #[error("axis {axis} at {}", beyond_limits(*value, *min, *max, 3))]
@@ -207,7 +234,8 @@ pub(crate) fn beside_limit(value: f64, limit: f64) -> String {
     format!("{value:.d$}")
 }
 
-/// A machine's kinematics. Implementations: [`cartesian::Cartesian`], [`polar::Polar`], [`scara::Scara`].
+/// A machine's kinematics. Implementations: [`cartesian::Cartesian`], [`polar::Polar`], [`scara::Scara`],
+/// [`fivebar::Fivebar`].
 pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// Short name as in `printer.cfg` (`cartesian`, `polar`, `scara`).
     fn name(&self) -> &'static str;
@@ -318,6 +346,7 @@ pub fn build(params: &MachineParams) -> Result<Box<dyn Kinematics>, ParamError> 
         MachineParams::Cartesian(p) => Box::new(cartesian::Cartesian::new(p.clone())?),
         MachineParams::Polar(p) => Box::new(polar::Polar::new(p.clone())?),
         MachineParams::Scara(p) => Box::new(scara::Scara::new(p.clone())?),
+        MachineParams::Fivebar(p) => Box::new(fivebar::Fivebar::new(p.clone())?),
     })
 }
 

@@ -6,6 +6,7 @@ pub enum MachineParams {
     Cartesian(CartesianParams),
     Polar(PolarParams),
     Scara(ScaraParams),
+    Fivebar(FivebarParams),
 }
 
 /// One stepper as configured: its name and travel per microstep (mm, or rad for rotary joints).
@@ -139,6 +140,79 @@ impl ScaraParams {
             elbow_limits: None,
             base_protection_radius: 60.0,
             singularity_margin: 0.0,
+        }
+    }
+}
+
+/// Which way a five-bar's joints turn: the sign of the turn `a → b → c` (counter-clockwise positive) that picks one
+/// of a circle–circle intersection's two points (RepRapFirmware's `L` workmode, per side and for the distals).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Turn {
+    Ccw,
+    Cw,
+}
+
+impl Turn {
+    /// `+1` for counter-clockwise, `−1` for clockwise.
+    pub fn sign(self) -> f64 {
+        match self {
+            Turn::Ccw => 1.0,
+            Turn::Cw => -1.0,
+        }
+    }
+}
+
+/// One side of a five-bar: its base joint, links, working mode and motor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FivebarArm {
+    /// The rotary stepper turning the proximal link (rad/step, limits in rad of motor reading).
+    pub stepper: StepperParams,
+    /// The base (proximal) joint's axis in bed coordinates, mm.
+    pub base: [f64; 2],
+    /// Base joint to elbow, mm.
+    pub proximal: f64,
+    /// Elbow to nozzle, mm.
+    pub distal: f64,
+    /// The turn base → elbow → nozzle: which of the two elbow positions this side uses.
+    pub turn: Turn,
+    /// Motor reading (rad) when the proximal link points along +X.
+    pub zero: f64,
+}
+
+/// A five-bar (parallel) SCARA: two base joints, each turning a proximal link; the distal links meet at the nozzle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FivebarParams {
+    pub left: FivebarArm,
+    pub right: FivebarArm,
+    pub z: StepperParams,
+    /// The turn left elbow → nozzle → right elbow (RepRapFirmware's forward kinematics: clockwise).
+    pub distal_turn: Turn,
+    /// Smallest |sin| of each side's proximal–distal angle (serial singularities: the arm straight or folded) and
+    /// of the angle between the distal links (the parallel singularity) that a path keeps.
+    pub singularity_margin: f64,
+}
+
+impl FivebarParams {
+    /// The example machine (`examples/machines/fivebar.cfg`): base joints at (−50, 0) and (50, 0), proximal links
+    /// 150 mm, distal links 200 mm, elbows outward (left clockwise, right counter-clockwise: RepRapFirmware's
+    /// workmode 2), distal turn clockwise, 3200 microsteps per proximal turn ×3 reduction, 400 steps/mm Z,
+    /// margin 0.1, no limits.
+    pub fn example() -> Self {
+        let joint_step = std::f64::consts::TAU / 9600.0;
+        let arm = |name: &str, x: f64, turn: Turn| FivebarArm {
+            stepper: StepperParams::new(name, joint_step),
+            base: [x, 0.0],
+            proximal: 150.0,
+            distal: 200.0,
+            turn,
+            zero: 0.0,
+        };
+        FivebarParams {
+            left: arm("stepper_left", -50.0, Turn::Cw),
+            right: arm("stepper_right", 50.0, Turn::Ccw),
+            z: StepperParams::new("stepper_z", 1.0 / 400.0),
+            distal_turn: Turn::Cw,
+            singularity_margin: 0.1,
         }
     }
 }

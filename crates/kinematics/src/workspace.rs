@@ -127,7 +127,10 @@ pub fn reason_label(e: &ReachError) -> &'static str {
         ReachError::InsideMinimumRadius { .. } => "inside minimum radius",
         ReachError::JointLimit { .. } => "joint / arm limit",
         ReachError::BranchImpossible { .. } => "wrong elbow branch",
-        ReachError::Singular { .. } => "near singular pose",
+        ReachError::Singular { .. } | ReachError::ArmSingular { .. } => "near singular pose",
+        ReachError::ArmReach { .. } => "out of an arm's reach",
+        ReachError::ParallelSingular { .. } => "near the parallel singularity",
+        ReachError::ElbowsApart { .. } => "distal links cannot join",
         ReachError::AtCentre { .. } => "at the rotation centre",
         ReachError::AxisLimit { .. } => "axis limit",
         ReachError::NotFinite => "not finite",
@@ -150,7 +153,7 @@ pub enum WorkspaceError {
 pub const MAX_CELLS: usize = 4_000_000;
 
 /// Map area and outline from the machine parameters: polar bed radius = arm `position_max`; SCARA reach
-/// `L1 + L2` around the shoulder; Cartesian X/Y limits.
+/// `L1 + L2` around the shoulder; five-bar: the box around both arms' full reach; Cartesian X/Y limits.
 pub fn area_for(params: &MachineParams) -> Result<(Bounds, Outline), ParamError> {
     match params {
         MachineParams::Polar(p) => {
@@ -165,6 +168,36 @@ pub fn area_for(params: &MachineParams) -> Result<(Bounds, Outline), ParamError>
             let reach = p.link1_length + p.link2_length;
             crate::common::ensure_positive("link1_length + link2_length", reach)?;
             Ok(circle_area([p.offset_x, p.offset_y], reach))
+        }
+        MachineParams::Fivebar(p) => {
+            // Both arms reach the nozzle: the box of the two discs' overlap.
+            let disc = |arm: &crate::FivebarArm| {
+                let r = arm.proximal + arm.distal;
+                [
+                    arm.base[0] - r,
+                    arm.base[0] + r,
+                    arm.base[1] - r,
+                    arm.base[1] + r,
+                ]
+            };
+            let (l, r) = (disc(&p.left), disc(&p.right));
+            let bounds = Bounds {
+                x_min: l[0].max(r[0]),
+                x_max: l[1].min(r[1]),
+                y_min: l[2].max(r[2]),
+                y_max: l[3].min(r[3]),
+            };
+            if !(bounds.x_min < bounds.x_max && bounds.y_min < bounds.y_max) {
+                return Err(ParamError::Invalid {
+                    name: "left_base_x".into(),
+                    reason: "the two arms' reaches do not overlap".into(),
+                });
+            }
+            let outline = Outline::Rectangle {
+                min: [bounds.x_min, bounds.y_min],
+                max: [bounds.x_max, bounds.y_max],
+            };
+            Ok((bounds, outline))
         }
         MachineParams::Cartesian(p) => {
             let limit = |i: usize| -> Result<(f64, f64), ParamError> {

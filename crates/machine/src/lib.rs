@@ -22,7 +22,7 @@ mod tests {
     /// The file (the command line) and its text (the plug-in without a file) build the same machine.
     #[test]
     fn a_file_and_its_text_build_one_machine() {
-        for name in ["polar", "scara", "cartesian"] {
+        for name in ["polar", "scara", "cartesian", "fivebar"] {
             let (from_file, notes) = Machine::load(&example(name)).expect("the example loads");
             assert!(notes.iter().all(|n| !n.refused), "{name}: {notes:?}");
             let text = std::fs::read_to_string(example(name)).expect("readable");
@@ -53,5 +53,36 @@ mod tests {
             kinematics::scara::Scara::of(machine.setup.kinematics.as_ref()).expect("a SCARA");
         let (min, max) = built.params().shoulder_limits.expect("cut");
         assert!(min >= -std::f64::consts::PI && max <= std::f64::consts::PI);
+    }
+
+    /// The five-bar homes each base joint to its endstop: the nozzle where the forward kinematics put it.
+    #[test]
+    fn a_fivebar_homes_to_its_endstop_angles() {
+        let (machine, notes) = Machine::load(&example("fivebar")).expect("the example loads");
+        assert!(notes.iter().all(|n| !n.refused), "{notes:?}");
+        assert_eq!(machine.setup.kinematics.name(), "fivebar");
+        let home = machine.setup.home_position.expect("homes to its endstops");
+        // Left arm at 150°, right at 30°: elbows at (∓179.90, −125), 359.81 mm apart, the nozzle
+        // √(200² − 179.90²) above them on x = 0.
+        let half = 50.0 + 150.0 * 30f64.to_radians().cos();
+        let y = -200.0 + 75.0 + (200.0f64 * 200.0 - half * half).sqrt();
+        assert!(
+            home[0].abs() < 1e-9 && (home[1] - y).abs() < 1e-9,
+            "{home:?}"
+        );
+        assert_eq!(home[2], 0.5);
+        let motors = machine.setup.kinematics.motors();
+        let names: Vec<&str> = motors.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, ["stepper_left", "stepper_right", "stepper_z"]);
+        // 25600 microsteps per joint turn; the joints' speed limits bind both arm motors.
+        assert!((motors[0].step_distance - std::f64::consts::TAU / 25600.0).abs() < 1e-15);
+        let limited: Vec<usize> = machine
+            .setup
+            .planner
+            .kinematic_limits
+            .iter()
+            .map(|l| l.motor)
+            .collect();
+        assert_eq!(limited, [0, 1]);
     }
 }

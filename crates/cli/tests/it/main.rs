@@ -8,6 +8,7 @@ mod check;
 mod common;
 mod determinism;
 mod estimate;
+mod fivebar;
 mod fuzz_regressions;
 mod host;
 mod includes;

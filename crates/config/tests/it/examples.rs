@@ -1,9 +1,10 @@
 //! Upstream example configs load unchanged: Klipper's example-polar.cfg and the FEKT-SCARA example.
 
 use std::f64::consts::TAU;
+use std::path::PathBuf;
 
 use config::{KinematicsKind, MachineConfig};
-use kinematics::{ElbowBranch, MachineParams, ScaraFrame};
+use kinematics::{ElbowBranch, MachineParams, ScaraFrame, Turn};
 
 use crate::fixture;
 
@@ -73,4 +74,46 @@ fn fekt_scara_example_loads() {
     assert_eq!(a.homing.as_ref().map(|h| h.positive_dir), Some(false));
     assert_eq!(machine.home_position, Some(vec![0.0, 200.0, 0.0]));
     assert!(machine.arcs.is_none());
+}
+
+/// The five-bar example: RepRapFirmware's `M669 K9 X-50:50 Y-200:-200 P150:150 D200:200 L2` as jointspace keys,
+/// rotary steppers in degrees in the file and radians inside; a missing working mode is refused at `[printer]`.
+#[test]
+fn fivebar_example_loads() {
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/machines/fivebar.cfg");
+    let machine = MachineConfig::load(&path).expect("fivebar.cfg loads");
+    assert_eq!(machine.kinematics, KinematicsKind::Fivebar);
+    assert!(
+        machine.unused_keys().is_empty(),
+        "{:?}",
+        machine.unused_keys()
+    );
+    let MachineParams::Fivebar(p) = &machine.params else {
+        panic!("five-bar params expected");
+    };
+    assert_eq!(
+        (p.left.base, p.right.base),
+        ([-50.0, -200.0], [50.0, -200.0])
+    );
+    assert_eq!((p.left.proximal, p.left.distal), (150.0, 200.0));
+    assert_eq!((p.right.proximal, p.right.distal), (150.0, 200.0));
+    assert_eq!(
+        (p.left.turn, p.right.turn, p.distal_turn),
+        (Turn::Cw, Turn::Ccw, Turn::Cw)
+    );
+    assert_eq!(p.singularity_margin, 0.1);
+    assert_eq!(p.left.stepper.step_distance, TAU / 25600.0);
+    assert_eq!(p.left.stepper.position_max, Some(210f64.to_radians()));
+    assert_eq!(machine.limits.max_joint_velocity, Some(6.0));
+    let text = std::fs::read_to_string(&path).expect("read");
+    let err = MachineConfig::from_str(&text.replace("left_arm_turn: cw\n", ""), &path)
+        .expect_err("the left arm's working mode is required");
+    assert!(err.to_string().contains("left_arm_turn"), "{err}");
+    let err = MachineConfig::from_str(
+        &text.replace("left_arm_turn: cw", "left_arm_turn: up"),
+        &path,
+    )
+    .expect_err("ccw or cw");
+    assert!(err.to_string().contains("left_arm_turn"), "{err}");
 }

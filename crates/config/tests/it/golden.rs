@@ -66,6 +66,7 @@ fn stated_step_distances_are_bit_exact() {
                 assert_eq!(step("stepper_x"), Some(0.0125));
                 assert_eq!(step("stepper_y"), Some(0.0125));
             }
+            KinematicsKind::Fivebar => panic!("Klipper has no five-bar: no golden case is one"),
         }
         assert_eq!(step("stepper_z"), Some(0.0025));
         assert_eq!(step("extruder"), Some(33.5 / 3200.0));
@@ -297,6 +298,7 @@ fn kinematics_parameters_match_summary_json() {
                 let names: Vec<&str> = p.steppers.iter().map(|s| s.name.as_str()).collect();
                 assert_eq!(names, ["stepper_x", "stepper_y", "stepper_z"]);
             }
+            MachineParams::Fivebar(_) => panic!("Klipper has no five-bar: no golden case is one"),
         }
     }
 }

@@ -2,6 +2,7 @@
 //! whole-segment checks, consistency with Klipper's golden data, and workspace maps.
 
 mod closed_form;
+mod fivebar;
 mod golden;
 mod machines;
 mod roundtrip;

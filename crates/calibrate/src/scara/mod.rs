@@ -21,6 +21,8 @@
 
 mod measurements;
 mod pattern;
+pub mod scan_fit;
+pub mod scan_image;
 mod verdict;
 
 pub use measurements::{
@@ -466,7 +468,7 @@ pub(crate) fn swapped_xy(data: &[Measurement]) -> Vec<Measurement> {
 }
 
 /// The geometry with its offsets exchanged (between the printer's X/Y and the X-SCARA arm frame).
-fn swap_offsets(g: &ScaraGeometry) -> ScaraGeometry {
+pub(crate) fn swap_offsets(g: &ScaraGeometry) -> ScaraGeometry {
     ScaraGeometry {
         offset_x: g.offset_y,
         offset_y: g.offset_x,

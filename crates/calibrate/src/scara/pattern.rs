@@ -28,6 +28,8 @@ const DIRECTIONS: usize = 72;
 /// What the machine must accept beyond each stroke's end (mm): an arm built a little differently from its config
 /// still prints the whole cross.
 const CROSS_MARGIN: f64 = 1.0;
+/// Least gap (mm) between two crosses' reaches: each cross stands alone on a scan, and calipers reach it.
+const CROSS_GAP: f64 = 4.0;
 /// Crosses in a pattern unless asked otherwise.
 pub const DEFAULT_POSES: usize = 20;
 /// Fewest poses a pattern may have: 7 parameters need 4 poses (8 equations).
@@ -211,12 +213,13 @@ pub fn machine_pattern(
         });
     }
     let nominal = ScaraGeometry::from(kin.params());
-    let motors: Vec<(f64, f64)> = all.iter().map(|c| c.motors).collect();
-    let picked = suggest_poses(&nominal, &[], &motors, count);
-    let mut chosen: Vec<Candidate> = picked
-        .iter()
-        .filter_map(|p| all.iter().find(|c| c.motors == *p).copied())
-        .collect();
+    let mut chosen = spaced_design(&nominal, &all, count, o.cross_size + CROSS_GAP);
+    if chosen.len() < MIN_POSES {
+        return Err(PatternError::TooFewPoses {
+            found: chosen.len(),
+            cross: o.cross_size,
+        });
+    }
     // One sweep of the shoulder: short joint-space travels.
     chosen.sort_by(|p, q| {
         p.motors
@@ -234,6 +237,48 @@ pub fn machine_pattern(
         poses,
         frame,
     })
+}
+
+/// The greedy D-optimal design of `count` candidates, each at least `spacing` (mm) from those chosen before it.
+/// The plain design is kept when its crosses are already that far apart.
+fn spaced_design(
+    nominal: &ScaraGeometry,
+    all: &[Candidate],
+    count: usize,
+    spacing: f64,
+) -> Vec<Candidate> {
+    let apart = |c: &Candidate, d: &Candidate| {
+        (c.centre[0] - d.centre[0]).hypot(c.centre[1] - d.centre[1]) >= spacing
+    };
+    let motors: Vec<(f64, f64)> = all.iter().map(|c| c.motors).collect();
+    let plain: Vec<Candidate> = suggest_poses(nominal, &[], &motors, count)
+        .iter()
+        .filter_map(|p| all.iter().find(|c| c.motors == *p).copied())
+        .collect();
+    if plain
+        .iter()
+        .enumerate()
+        .all(|(i, c)| plain[i + 1..].iter().all(|d| apart(c, d)))
+    {
+        return plain;
+    }
+    let mut chosen: Vec<Candidate> = Vec::new();
+    while chosen.len() < count {
+        let free: Vec<(f64, f64)> = all
+            .iter()
+            .filter(|c| chosen.iter().all(|d| apart(c, d)))
+            .map(|c| c.motors)
+            .collect();
+        let current: Vec<(f64, f64)> = chosen.iter().map(|c| c.motors).collect();
+        let Some(pick) = suggest_poses(nominal, &current, &free, 1).first().copied() else {
+            break;
+        };
+        match all.iter().find(|c| c.motors == pick) {
+            Some(c) => chosen.push(*c),
+            None => break,
+        }
+    }
+    chosen
 }
 
 /// The machine with its shoulder joint kept within (−π, π]: the printer's step solvers take q1 there (as the

@@ -26,11 +26,12 @@ pub mod scan_image;
 mod verdict;
 
 pub use measurements::{
-    CSV_HEADER, MeasurementFile, frame_name, measurement_template, parse_measurement_file,
-    parse_measurements,
+    CSV_HEADER, MeasurementFile, PoseFile, frame_name, measurement_template,
+    parse_measurement_file, parse_measurements, parse_pose_file,
 };
 pub use pattern::{
-    DEFAULT_POSES, MIN_POSES, Pattern, PatternError, PatternOptions, machine_pattern,
+    DEFAULT_POSES, MIN_POSES, Pattern, PatternError, PatternOptions, REFERENCE_ACROSS,
+    REFERENCE_REACH, machine_pattern,
 };
 pub use verdict::{
     FALSE_ALARM, MIN_RESIDUAL_DOF, MeasuringMethod, PoseResidual, Verdict, chi_square_limit, judge,

@@ -79,6 +79,45 @@ pub struct Pattern {
     /// The measurements file to fill in (see [`measurement_template`]).
     pub template: String,
     pub condition_number: f64,
+    /// The two crosses (0-based) best for a scan's reference distance: the farthest apart along X within
+    /// [`REFERENCE_ACROSS`] along Y and [`REFERENCE_REACH`] along X, so calipers measure across their strokes
+    /// along Y.
+    pub reference: Option<(usize, usize)>,
+}
+
+/// How far apart along Y (mm) a reference pair's crosses may be: the calipers' jaws reach both strokes along Y.
+pub const REFERENCE_ACROSS: f64 = 20.0;
+/// How far apart along X (mm) they may be: common calipers' range.
+pub const REFERENCE_REACH: f64 = 150.0;
+
+/// The reference pair among `centres` (see [`Pattern::reference`]).
+fn reference_pair(centres: &[[f64; 2]]) -> Option<(usize, usize)> {
+    let mut best: Option<(usize, usize, f64)> = None;
+    for i in 0..centres.len() {
+        for j in i + 1..centres.len() {
+            let dx = (centres[i][0] - centres[j][0]).abs();
+            let dy = (centres[i][1] - centres[j][1]).abs();
+            if dy <= REFERENCE_ACROSS && dx <= REFERENCE_REACH && best.is_none_or(|b| dx > b.2) {
+                best = Some((i, j, dx));
+            }
+        }
+    }
+    best.map(|(i, j, _)| (i, j))
+}
+
+/// The comment lines naming the reference pair, `prefix` before each (`;` for G-code, `#` for the file).
+fn reference_note(reference: Option<(usize, usize)>, prefix: &str) -> String {
+    match reference {
+        Some((a, b)) => format!(
+            "{prefix} for a scan: measure with calipers between crosses {} and {} across their strokes along Y (the mean of\n\
+             {prefix} the outside and the inside distance) and give it as --reference {},{}=MM\n",
+            a + 1,
+            b + 1,
+            a + 1,
+            b + 1
+        ),
+        None => String::new(),
+    }
 }
 
 /// Why no pattern could be made.
@@ -229,11 +268,22 @@ pub fn machine_pattern(
     });
     let poses: Vec<(f64, f64)> = chosen.iter().map(|c| c.motors).collect();
     let frame = kin.params().frame;
+    let centres: Vec<[f64; 2]> = chosen.iter().map(|c| c.centre).collect();
+    let reference = reference_pair(&centres);
+    let mut gcode = pattern_gcode(kin, &chosen, o)?;
+    let mut template = measurement_template(&poses, frame);
+    let header = |text: &mut String, prefix: &str| {
+        let at = text.find('\n').map_or(0, |i| i + 1);
+        text.insert_str(at, &reference_note(reference, prefix));
+    };
+    header(&mut gcode, ";");
+    header(&mut template, "#");
     Ok(Pattern {
-        gcode: pattern_gcode(kin, &chosen, o)?,
-        template: measurement_template(&poses, frame),
+        gcode,
+        template,
+        reference,
         condition_number: analyse_poses(&nominal, &poses).condition_number,
-        centres: chosen.iter().map(|c| c.centre).collect(),
+        centres,
         poses,
         frame,
     })

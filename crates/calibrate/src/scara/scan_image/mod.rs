@@ -240,45 +240,8 @@ pub fn calibrate_scan(
     scale: &ScanScale,
 ) -> Result<ScanCalibration, ScanImageError> {
     let stated = scale.dpi().map(|d| d / 25.4);
-    let detection = detect_crosses(image, name, stated)?;
-    if detection.crosses.is_empty() {
-        let mut reasons: Vec<String> = detection
-            .rejected
-            .iter()
-            .map(|r| r.reason.clone())
-            .collect();
-        reasons.dedup();
-        reasons.truncate(3);
-        return Err(ScanImageError::NoCrosses {
-            file: name.to_string(),
-            marks: detection.marks,
-            reasons: if reasons.is_empty() {
-                "specks".into()
-            } else {
-                reasons.join("; ")
-            },
-        });
-    }
-    let nominal: Vec<[f64; 2]> = poses
-        .iter()
-        .map(|&(a, b)| printer_forward(start, frame, a, b))
-        .collect();
+    let (detection, matching) = detect_and_match(image, name, poses, start, frame, stated)?;
     let found: Vec<[f64; 2]> = detection.crosses.iter().map(|c| c.centre).collect();
-    let needed = MIN_MATCHED.max(poses.len().div_ceil(2));
-    let bounds = stated.map(|k| (0.9 * k, 1.1 * k));
-    let matching = match_poses(&nominal, &found, bounds);
-    let matched = matching
-        .as_ref()
-        .map_or(0, |m| m.assigned.iter().flatten().count());
-    let Some(matching) = matching.filter(|_| matched >= needed) else {
-        return Err(ScanImageError::NotThePattern {
-            file: name.to_string(),
-            found: found.len(),
-            matched,
-            poses: poses.len(),
-            needed,
-        });
-    };
     let layout = matching.similarity.scale;
     let (px_per_mm, source) = scale_of(scale, &detection, &matching, name)?;
     if (layout / px_per_mm - 1.0).abs() > 0.05 {
@@ -325,6 +288,57 @@ pub fn calibrate_scan(
         left_out,
         fit,
     })
+}
+
+/// The crosses on the scan and their poses (`stated`: the pixels per mm the dpi gives, when given).
+fn detect_and_match(
+    image: &ScanImage,
+    name: &str,
+    poses: &[(f64, f64)],
+    start: &ScaraGeometry,
+    frame: ScaraFrame,
+    stated: Option<f64>,
+) -> Result<(Detection, Matching), ScanImageError> {
+    let detection = detect_crosses(image, name, stated)?;
+    if detection.crosses.is_empty() {
+        let mut reasons: Vec<String> = detection
+            .rejected
+            .iter()
+            .map(|r| r.reason.clone())
+            .collect();
+        reasons.dedup();
+        reasons.truncate(3);
+        return Err(ScanImageError::NoCrosses {
+            file: name.to_string(),
+            marks: detection.marks,
+            reasons: if reasons.is_empty() {
+                "specks".into()
+            } else {
+                reasons.join("; ")
+            },
+        });
+    }
+    let nominal: Vec<[f64; 2]> = poses
+        .iter()
+        .map(|&(a, b)| printer_forward(start, frame, a, b))
+        .collect();
+    let found: Vec<[f64; 2]> = detection.crosses.iter().map(|c| c.centre).collect();
+    let needed = MIN_MATCHED.max(poses.len().div_ceil(2));
+    let bounds = stated.map(|k| (0.9 * k, 1.1 * k));
+    let matching = match_poses(&nominal, &found, bounds);
+    let matched = matching
+        .as_ref()
+        .map_or(0, |m| m.assigned.iter().flatten().count());
+    let Some(matching) = matching.filter(|_| matched >= needed) else {
+        return Err(ScanImageError::NotThePattern {
+            file: name.to_string(),
+            found: found.len(),
+            matched,
+            poses: poses.len(),
+            needed,
+        });
+    };
+    Ok((detection, matching))
 }
 
 /// A cross this far off the fit (mm), and this many times the others' typical residual, is left out: a smeared

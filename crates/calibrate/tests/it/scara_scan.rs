@@ -404,3 +404,106 @@ fn the_dpi_scale_error_goes_into_the_lengths_only() {
     );
     assert!(o.scaled[1] <= 1.0 && o.scaled[2] <= 1.0, "{:?}", o.scaled);
 }
+
+/// The fixture scans (`tests/fixtures/scan/`): small crops of real-looking edge cases, made by
+/// [`write_scan_fixtures`] from this crate's scan model, each with the true centre of its cross (pixels) beside it.
+fn fixture_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/scan")
+}
+
+/// A one-cross crop of the pattern of arm `seed`'s first pose, scanned by `s`.
+fn one_cross(s: &Scanner, seed: u64, smeared: bool) -> Rendered {
+    let (truth, _, mut pattern, kin) = edge_case_arm(100.0, seed);
+    pattern.poses.truncate(1);
+    pattern.centres.truncate(1);
+    render(
+        &kin,
+        &truth,
+        &pattern,
+        s,
+        seed,
+        &[],
+        if smeared { &[0] } else { &[] },
+    )
+}
+
+/// A scanner with little noise, so the fixture files stay small.
+fn quiet(dpi: f64) -> Scanner {
+    Scanner {
+        noise: 1.5,
+        ..Scanner::at(dpi)
+    }
+}
+
+/// Writes the fixture scans (`cargo test --release -p calibrate -- --ignored write_scan_fixtures`).
+#[test]
+#[ignore = "writes the fixture files; run by hand when the scan model changes"]
+fn write_scan_fixtures() {
+    let dir = fixture_dir();
+    std::fs::create_dir_all(&dir).expect("fixture folder");
+    let dusty = Scanner {
+        rotation_deg: 7.0,
+        dust: 6,
+        strings: 2,
+        noise: 6.0,
+        colour: Some([220, 170, 20]),
+        ..Scanner::at(600.0)
+    };
+    let cases = [
+        (
+            "yellow-cross-jpeg-q60.jpg",
+            one_cross(&dusty, 41, false),
+            Some(60),
+        ),
+        (
+            "grey-cross-1200dpi-q85.jpg",
+            one_cross(&quiet(1200.0), 42, false),
+            Some(85),
+        ),
+        (
+            "smeared-cross.png",
+            one_cross(&quiet(600.0), 43, true),
+            None,
+        ),
+    ];
+    for (name, r, jpeg) in cases {
+        std::fs::write(dir.join(name), crate::scan_render::encode(&r, jpeg)).expect("written");
+        let truth = format!("{} {}\n", r.centres[0][0], r.centres[0][1]);
+        std::fs::write(dir.join(name).with_extension("txt"), truth).expect("written");
+    }
+}
+
+/// The fixtures read as a user's files would be: the yellow cross (JPEG at quality 60, turned 7°, dust and strings)
+/// and the 1200 dpi one found within 0.005 mm of where they were printed, the smeared one not taken for a cross.
+#[test]
+fn fixture_scans_are_read_as_they_should_be() {
+    use calibrate::scara::scan_image::{ScanImage, detect_crosses};
+    let dir = fixture_dir();
+    for (name, dpi) in [
+        ("yellow-cross-jpeg-q60.jpg", 600.0),
+        ("grey-cross-1200dpi-q85.jpg", 1200.0),
+    ] {
+        let path = dir.join(name);
+        assert!(
+            std::fs::metadata(&path).expect("fixture").len() < 200_000,
+            "{name} is small"
+        );
+        let image = ScanImage::open(&path).expect("decodes");
+        let truth: Vec<f64> = std::fs::read_to_string(path.with_extension("txt"))
+            .expect("truth")
+            .split_whitespace()
+            .map(|v| v.parse().expect("a number"))
+            .collect();
+        let found = detect_crosses(&image, name, Some(dpi / 25.4)).expect("marks");
+        assert_eq!(found.crosses.len(), 1, "{name}: {:?}", found.rejected);
+        let c = found.crosses[0].centre;
+        let error = (c[0] - truth[0]).hypot(c[1] - truth[1]) * 25.4 / dpi;
+        assert!(error <= 0.005, "{name}: {error} mm off");
+    }
+    let image = ScanImage::open(&dir.join("smeared-cross.png")).expect("decodes");
+    let found = detect_crosses(&image, "smeared-cross.png", Some(600.0 / 25.4)).expect("marks");
+    assert!(
+        found.crosses.is_empty() && !found.rejected.is_empty(),
+        "{found:?}"
+    );
+}

@@ -10,6 +10,7 @@ mod magnets;
 mod maps;
 mod output;
 mod report;
+mod scan_picture;
 mod timing;
 
 use clap::{Parser, Subcommand};

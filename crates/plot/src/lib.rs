@@ -16,3 +16,14 @@ pub mod workspace;
 pub use colour::{ColourScale, Rgb};
 pub use error::PlotError;
 pub use figure::{Figure, Grid, Layer, Legend};
+
+/// A picture (8-bit RGB, `width × height`) with `draw`'s marks over it, as PNG bytes: a scan with what was found
+/// on it.
+pub fn overlay_png(
+    rgb: Vec<u8>,
+    width: u32,
+    height: u32,
+    draw: impl FnOnce(&mut dyn canvas::Canvas),
+) -> Result<Vec<u8>, PlotError> {
+    png_out::render_over(rgb, width, height, draw)
+}

@@ -126,8 +126,28 @@ pub(crate) fn render(
     height: u32,
     draw: impl FnOnce(&mut dyn Canvas),
 ) -> Result<Vec<u8>, PlotError> {
+    render_over(
+        vec![255u8; width as usize * height as usize * 3],
+        width,
+        height,
+        draw,
+    )
+}
+
+/// Draws with `draw` over `rgb` (a `width × height` picture, 8-bit RGB) and returns the PNG bytes.
+pub(crate) fn render_over(
+    mut rgb: Vec<u8>,
+    width: u32,
+    height: u32,
+    draw: impl FnOnce(&mut dyn Canvas),
+) -> Result<Vec<u8>, PlotError> {
     ensure_font()?;
-    let mut rgb = vec![255u8; width as usize * height as usize * 3];
+    if rgb.len() != width as usize * height as usize * 3 {
+        return Err(PlotError::Render(format!(
+            "{} bytes are not a {width} × {height} RGB picture",
+            rgb.len()
+        )));
+    }
     {
         let backend = BitMapBackend::with_buffer(&mut rgb, (width, height));
         let mut canvas = PngCanvas {

@@ -13,6 +13,7 @@ pub mod metrics;
 pub mod motor;
 pub mod replay;
 pub mod report;
+pub mod scan;
 pub mod scenario;
 pub mod simulation;
 pub mod testprint;

@@ -59,6 +59,33 @@ pub fn parse_measurement_file(text: &str, file: &str) -> Result<MeasurementFile,
     Ok(MeasurementFile { frame, rows })
 }
 
+/// A measurements file read for its poses alone (the template as written, `x_mm` and `y_mm` empty or not).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseFile {
+    pub frame: Option<(ScaraFrame, usize)>,
+    /// Motor angles (rad) per row, in order (the pattern's cross numbers).
+    pub poses: Vec<(f64, f64)>,
+}
+
+/// The poses of a measurements file or template, errors located as [`parse_measurement_file`]'s.
+pub fn parse_pose_file(text: &str, file: &str) -> Result<PoseFile, ScaraError> {
+    let located = |e: crate::csv::CsvError| ScaraError::Parse {
+        file: file.to_string(),
+        line: e.line,
+        column: e.column,
+        message: e.message,
+    };
+    let (frame, table) = frame_line(text).map_err(located)?;
+    let mut poses = Vec::new();
+    for row in crate::csv::data_rows(&table, &CSV_HEADER).map_err(located)? {
+        poses.push((
+            row.number(0).map_err(located)?.to_radians(),
+            row.number(1).map_err(located)?.to_radians(),
+        ));
+    }
+    Ok(PoseFile { frame, poses })
+}
+
 /// The rows of a measurements file (its frame line, if any, checked and set aside).
 pub fn parse_measurements(text: &str, file: &str) -> Result<Vec<Measurement>, ScaraError> {
     parse_measurement_file(text, file).map(|f| f.rows)

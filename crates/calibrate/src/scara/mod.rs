@@ -21,14 +21,17 @@
 
 mod measurements;
 mod pattern;
+pub mod scan_fit;
+pub mod scan_image;
 mod verdict;
 
 pub use measurements::{
-    CSV_HEADER, MeasurementFile, frame_name, measurement_template, parse_measurement_file,
-    parse_measurements,
+    CSV_HEADER, MeasurementFile, PoseFile, frame_name, measurement_template,
+    parse_measurement_file, parse_measurements, parse_pose_file,
 };
 pub use pattern::{
-    DEFAULT_POSES, MIN_POSES, Pattern, PatternError, PatternOptions, machine_pattern,
+    DEFAULT_POSES, MIN_POSES, Pattern, PatternError, PatternOptions, REFERENCE_ACROSS,
+    REFERENCE_REACH, machine_pattern,
 };
 pub use verdict::{
     FALSE_ALARM, MIN_RESIDUAL_DOF, MeasuringMethod, PoseResidual, Verdict, chi_square_limit, judge,
@@ -466,7 +469,7 @@ pub(crate) fn swapped_xy(data: &[Measurement]) -> Vec<Measurement> {
 }
 
 /// The geometry with its offsets exchanged (between the printer's X/Y and the X-SCARA arm frame).
-fn swap_offsets(g: &ScaraGeometry) -> ScaraGeometry {
+pub(crate) fn swap_offsets(g: &ScaraGeometry) -> ScaraGeometry {
     ScaraGeometry {
         offset_x: g.offset_y,
         offset_y: g.offset_x,

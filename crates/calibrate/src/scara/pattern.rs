@@ -28,6 +28,8 @@ const DIRECTIONS: usize = 72;
 /// What the machine must accept beyond each stroke's end (mm): an arm built a little differently from its config
 /// still prints the whole cross.
 const CROSS_MARGIN: f64 = 1.0;
+/// Least gap (mm) between two crosses' reaches: each cross stands alone on a scan, and calipers reach it.
+const CROSS_GAP: f64 = 4.0;
 /// Crosses in a pattern unless asked otherwise.
 pub const DEFAULT_POSES: usize = 20;
 /// Fewest poses a pattern may have: 7 parameters need 4 poses (8 equations).
@@ -77,6 +79,45 @@ pub struct Pattern {
     /// The measurements file to fill in (see [`measurement_template`]).
     pub template: String,
     pub condition_number: f64,
+    /// The two crosses (0-based) best for a scan's reference distance: the farthest apart along X within
+    /// [`REFERENCE_ACROSS`] along Y and [`REFERENCE_REACH`] along X, so calipers measure across their strokes
+    /// along Y.
+    pub reference: Option<(usize, usize)>,
+}
+
+/// How far apart along Y (mm) a reference pair's crosses may be: the calipers' jaws reach both strokes along Y.
+pub const REFERENCE_ACROSS: f64 = 20.0;
+/// How far apart along X (mm) they may be: common calipers' range.
+pub const REFERENCE_REACH: f64 = 150.0;
+
+/// The reference pair among `centres` (see [`Pattern::reference`]).
+fn reference_pair(centres: &[[f64; 2]]) -> Option<(usize, usize)> {
+    let mut best: Option<(usize, usize, f64)> = None;
+    for i in 0..centres.len() {
+        for j in i + 1..centres.len() {
+            let dx = (centres[i][0] - centres[j][0]).abs();
+            let dy = (centres[i][1] - centres[j][1]).abs();
+            if dy <= REFERENCE_ACROSS && dx <= REFERENCE_REACH && best.is_none_or(|b| dx > b.2) {
+                best = Some((i, j, dx));
+            }
+        }
+    }
+    best.map(|(i, j, _)| (i, j))
+}
+
+/// The comment lines naming the reference pair, `prefix` before each (`;` for G-code, `#` for the file).
+fn reference_note(reference: Option<(usize, usize)>, prefix: &str) -> String {
+    match reference {
+        Some((a, b)) => format!(
+            "{prefix} for a scan: measure with calipers between crosses {} and {} across their strokes along Y (the mean of\n\
+             {prefix} the outside and the inside distance) and give it as --reference {},{}=MM\n",
+            a + 1,
+            b + 1,
+            a + 1,
+            b + 1
+        ),
+        None => String::new(),
+    }
 }
 
 /// Why no pattern could be made.
@@ -211,12 +252,13 @@ pub fn machine_pattern(
         });
     }
     let nominal = ScaraGeometry::from(kin.params());
-    let motors: Vec<(f64, f64)> = all.iter().map(|c| c.motors).collect();
-    let picked = suggest_poses(&nominal, &[], &motors, count);
-    let mut chosen: Vec<Candidate> = picked
-        .iter()
-        .filter_map(|p| all.iter().find(|c| c.motors == *p).copied())
-        .collect();
+    let mut chosen = spaced_design(&nominal, &all, count, o.cross_size + CROSS_GAP);
+    if chosen.len() < MIN_POSES {
+        return Err(PatternError::TooFewPoses {
+            found: chosen.len(),
+            cross: o.cross_size,
+        });
+    }
     // One sweep of the shoulder: short joint-space travels.
     chosen.sort_by(|p, q| {
         p.motors
@@ -226,14 +268,67 @@ pub fn machine_pattern(
     });
     let poses: Vec<(f64, f64)> = chosen.iter().map(|c| c.motors).collect();
     let frame = kin.params().frame;
+    let centres: Vec<[f64; 2]> = chosen.iter().map(|c| c.centre).collect();
+    let reference = reference_pair(&centres);
+    let mut gcode = pattern_gcode(kin, &chosen, o)?;
+    let mut template = measurement_template(&poses, frame);
+    let header = |text: &mut String, prefix: &str| {
+        let at = text.find('\n').map_or(0, |i| i + 1);
+        text.insert_str(at, &reference_note(reference, prefix));
+    };
+    header(&mut gcode, ";");
+    header(&mut template, "#");
     Ok(Pattern {
-        gcode: pattern_gcode(kin, &chosen, o)?,
-        template: measurement_template(&poses, frame),
+        gcode,
+        template,
+        reference,
         condition_number: analyse_poses(&nominal, &poses).condition_number,
-        centres: chosen.iter().map(|c| c.centre).collect(),
+        centres,
         poses,
         frame,
     })
+}
+
+/// The greedy D-optimal design of `count` candidates, each at least `spacing` (mm) from those chosen before it.
+/// The plain design is kept when its crosses are already that far apart.
+fn spaced_design(
+    nominal: &ScaraGeometry,
+    all: &[Candidate],
+    count: usize,
+    spacing: f64,
+) -> Vec<Candidate> {
+    let apart = |c: &Candidate, d: &Candidate| {
+        (c.centre[0] - d.centre[0]).hypot(c.centre[1] - d.centre[1]) >= spacing
+    };
+    let motors: Vec<(f64, f64)> = all.iter().map(|c| c.motors).collect();
+    let plain: Vec<Candidate> = suggest_poses(nominal, &[], &motors, count)
+        .iter()
+        .filter_map(|p| all.iter().find(|c| c.motors == *p).copied())
+        .collect();
+    if plain
+        .iter()
+        .enumerate()
+        .all(|(i, c)| plain[i + 1..].iter().all(|d| apart(c, d)))
+    {
+        return plain;
+    }
+    let mut chosen: Vec<Candidate> = Vec::new();
+    while chosen.len() < count {
+        let free: Vec<(f64, f64)> = all
+            .iter()
+            .filter(|c| chosen.iter().all(|d| apart(c, d)))
+            .map(|c| c.motors)
+            .collect();
+        let current: Vec<(f64, f64)> = chosen.iter().map(|c| c.motors).collect();
+        let Some(pick) = suggest_poses(nominal, &current, &free, 1).first().copied() else {
+            break;
+        };
+        match all.iter().find(|c| c.motors == pick) {
+            Some(c) => chosen.push(*c),
+            None => break,
+        }
+    }
+    chosen
 }
 
 /// The machine with its shoulder joint kept within (−π, π]: the printer's step solvers take q1 there (as the

@@ -3,7 +3,9 @@
 
 mod centre_scan;
 mod circle_fits;
+mod scan_render;
 mod scara_ident;
 mod scara_pattern;
+mod scara_scan;
 mod sweep_scan;
 mod tilt_scan;

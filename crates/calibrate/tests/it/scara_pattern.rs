@@ -3,7 +3,8 @@
 //! and a forward model of this file), and from the default pattern, arms built differently from their config
 //! (FEKT-like and X-SCARA-like) are identified within 0.02 mm / 0.02° / 0.02 % with an honest σ; wrong inputs are
 //! judged not trustworthy. The whole loop (pattern, arm as built, measured crosses, fit, corrected config) puts the
-//! nozzle within 0.03 mm of where a part asks over the workspace.
+//! nozzle within 0.04 mm of where a part asks over the workspace (the crosses kept 10 mm apart, so each stands
+//! alone for calipers and on a scan).
 
 use std::f64::consts::PI;
 
@@ -17,15 +18,15 @@ use rand_distr::{Distribution, Normal};
 /// An arm as built: link lengths, shoulder position in the printer's X/Y, motor readings at the joints' zeros, the
 /// elbow motor's coupling to the shoulder, and the direction angles count from.
 #[derive(Debug, Clone, Copy)]
-struct Arm {
-    l1: f64,
-    l2: f64,
-    shoulder: [f64; 2],
-    zero_a: f64,
-    zero_b: f64,
-    coupling: f64,
+pub(crate) struct Arm {
+    pub(crate) l1: f64,
+    pub(crate) l2: f64,
+    pub(crate) shoulder: [f64; 2],
+    pub(crate) zero_a: f64,
+    pub(crate) zero_b: f64,
+    pub(crate) coupling: f64,
     /// Angles from +Y turning towards +X (X-SCARA), else from +X turning towards +Y.
-    from_y: bool,
+    pub(crate) from_y: bool,
 }
 
 impl Arm {
@@ -41,7 +42,7 @@ impl Arm {
     /// Where the nozzle is at motor readings `(a, b)`: the elbow at L1 along the shoulder joint's angle, the nozzle
     /// at L2 along the proximal link's angle plus the elbow joint's (the elbow motor also turns by `coupling` times
     /// the shoulder joint).
-    fn nozzle(&self, a: f64, b: f64) -> [f64; 2] {
+    pub(crate) fn nozzle(&self, a: f64, b: f64) -> [f64; 2] {
         let shoulder_joint = a - self.zero_a;
         let elbow_joint = b - self.zero_b - self.coupling * shoulder_joint;
         let d1 = self.direction(shoulder_joint);
@@ -67,7 +68,7 @@ impl Arm {
 
 /// The printer.cfg of an arm believed to be `arm`: FEKT-like (standard frame, left elbow, `ecr`, 60 mm-style base
 /// radius, motor limits ±200°) or X-SCARA-like (its frame, right elbow, a coupling, a singular band).
-fn config(arm: &Arm) -> ScaraParams {
+pub(crate) fn config(arm: &Arm) -> ScaraParams {
     let deg = |v: f64| v.to_radians();
     let joint = |name: &str, fekt: bool| StepperParams {
         position_min: fekt.then_some(deg(-200.0)),
@@ -134,7 +135,7 @@ fn machine(arm: &Arm) -> Scara {
 }
 
 /// The machine with its shoulder joint kept within `limits` (rad), when given: a bed that covers part of the reach.
-fn limited_machine(arm: &Arm, limits: Option<(f64, f64)>) -> Scara {
+pub(crate) fn limited_machine(arm: &Arm, limits: Option<(f64, f64)>) -> Scara {
     Scara::new(ScaraParams {
         shoulder_limits: limits,
         ..config(arm)
@@ -260,7 +261,7 @@ fn fifty_random_arms_on_half_a_turn_of_the_shoulder() {
 
 /// 50 random arms (every other one X-SCARA-like) calibrated from the default pattern of their believed config (its
 /// shoulder within `limits`): at least 48 within 0.02 mm / 0.02° / 0.02 % on every parameter, 90 % of the errors
-/// within 2σ, the fits judged trustworthy, the corrected nozzle within 0.03 mm over the workspace.
+/// within 2σ, the fits judged trustworthy, the corrected nozzle within 0.04 mm over the workspace.
 fn fifty_random_arms(limits: Option<(f64, f64)>) {
     let mut rng = StdRng::seed_from_u64(2027);
     let (arms, mut within, mut covered, mut judged_ok) = (50, 0, 0, 0);
@@ -321,7 +322,7 @@ fn fifty_random_arms(limits: Option<(f64, f64)>) {
     assert!(within >= 48, "{within} of {arms} within bounds");
     assert!(coverage >= 0.9, "{coverage}");
     assert!(judged_ok >= 49, "{judged_ok} of {arms} judged trustworthy");
-    assert!(nozzle_worst <= 0.03, "{nozzle_worst} mm");
+    assert!(nozzle_worst <= 0.04, "{nozzle_worst} mm");
 }
 
 /// Inputs that cannot be right are judged so: the angles of the other elbow branch (what the old pattern listed),

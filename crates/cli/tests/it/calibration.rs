@@ -392,3 +392,136 @@ fn a_second_scan_higher_up_removes_the_sensors_tilt() {
     let (status, _, err) = run(dir.path(), &two[..6]);
     assert_ne!(status, Some(0), "{err}");
 }
+
+/// The example SCARA's pattern printed by an arm built differently (links +0.4 / −0.3 mm, ECR 3.05, elbow zero
+/// +0.3°), scanned at 300 dpi (sim's scan): `calibrate scara --image` with the pattern's template and `--dpi`
+/// recovers the arm as built, writes the result and the picture, and says what a scan cannot determine; the same
+/// with a calipers reference; a scan of another config's pattern is refused naming what was found.
+#[test]
+fn a_scan_of_the_pattern_identifies_the_arm() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = example_machine("scara");
+    let config = config.to_str().expect("utf-8 path");
+    let (_, template) = checked_pattern(dir.path(), config);
+    let (machine, _) = machine::Machine::load(Path::new(config)).expect("the example loads");
+    let believed =
+        kinematics::scara::Scara::of(machine.setup.kinematics.as_ref()).expect("a SCARA");
+    let options = calibrate::scara::PatternOptions {
+        home: machine.setup.home_position,
+        ..Default::default()
+    };
+    let pattern =
+        calibrate::scara::machine_pattern(believed, calibrate::scara::DEFAULT_POSES, &options)
+            .expect("a pattern");
+    assert_eq!(pattern.template, template);
+    let params = believed.params().clone();
+    let actual_params = kinematics::ScaraParams {
+        link1_length: params.link1_length + 0.4,
+        link2_length: params.link2_length - 0.3,
+        elbow_coupling: 1.0 / 3.05,
+        ecr: Some(3.05),
+        elbow_zero: params.elbow_zero + 0.3f64.to_radians(),
+        ..params.clone()
+    };
+    let actual = kinematics::scara::Scara::new(actual_params.clone()).expect("valid");
+    let settings = sim::scan::ScanSettings {
+        dpi: 300.0,
+        rotation_deg: -2.0,
+        noise: 3.0,
+        seed: 4,
+    };
+    let scan = sim::scan::render_scan(believed, &actual, &pattern, &settings);
+    let rgb: Vec<u8> = scan.luma.iter().flat_map(|v| [*v, *v, *v]).collect();
+    let png =
+        plot::overlay_png(rgb, scan.width as u32, scan.height as u32, |_| {}).expect("encodes");
+    std::fs::write(dir.path().join("scan.png"), png).expect("written");
+    let (code, out, err) = run(
+        dir.path(),
+        &[
+            "calibrate",
+            "scara",
+            "-c",
+            config,
+            "--image",
+            "scan.png",
+            "--dpi",
+            "300",
+            "--measurements",
+            "scara-measurements.csv",
+            "--plot",
+            "found.png",
+        ],
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(out.contains("not determined by a scan"), "{out}");
+    assert!(dir.path().join("found.png").exists());
+    let result: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("scara.json")).expect("result"),
+    )
+    .expect("json");
+    let got = |key: &str| result[key].as_f64().expect("a number");
+    assert!(
+        (got("link1_length") - actual_params.link1_length).abs() < 0.01,
+        "{result}"
+    );
+    assert!(
+        (got("link2_length") - actual_params.link2_length).abs() < 0.01,
+        "{result}"
+    );
+    assert!((got("ecr") - 3.05).abs() < 1e-3, "{result}");
+    assert_eq!(result["scan"]["crosses"].as_array().map(Vec::len), Some(20));
+    // A reference between the pattern's pair, as calipers read it on the print.
+    let (a, b) = pattern.reference.expect("a reference pair");
+    let printed = |i: usize| {
+        let (ma, mb) = pattern.poses[i];
+        let p = kinematics::Kinematics::forward(&actual, &[ma, mb, 0.3]).expect("reachable");
+        [p[0], p[1]]
+    };
+    let distance = (printed(b)[0] - printed(a)[0]).abs();
+    let reference = format!("{},{}={distance:.3}", a + 1, b + 1);
+    let (code, out, err) = run(
+        dir.path(),
+        &[
+            "calibrate",
+            "scara",
+            "-c",
+            config,
+            "--image",
+            "scan.png",
+            "--reference",
+            &reference,
+            "-o",
+            "ref.json",
+        ],
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(out.contains("calipers, crosses"), "{out}");
+    // Another config's pattern: refused, naming the file and what was found.
+    let other = dir.path().join("other.cfg");
+    let text = std::fs::read_to_string(config).expect("config");
+    std::fs::write(
+        &other,
+        text.replace("link1_length: 100", "link1_length: 120"),
+    )
+    .expect("written");
+    let (code, out, err) = run(
+        dir.path(),
+        &[
+            "calibrate",
+            "scara",
+            "-c",
+            "other.cfg",
+            "--image",
+            "scan.png",
+            "--dpi",
+            "300",
+            "-o",
+            "o.json",
+        ],
+    );
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        err.contains("scan.png") && err.contains("crosses found"),
+        "{err}"
+    );
+}

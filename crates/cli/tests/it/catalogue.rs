@@ -4,8 +4,9 @@
 //! infinity was printed or written, and that a failed run left no file behind.
 //!
 //! `expect.txt` holds `key: value` lines (`#` starts a comment):
-//! - `command`: `run` (default; with `--steps out/steps --moves out/moves.csv`), `check`, `stats` or
-//!   `convert` (with `-o out/converted.gcode`);
+//! - `command`: `run` (default; with `--steps out/steps --moves out/moves.csv`), `check`, `stats`,
+//!   `convert` (with `-o out/converted.gcode`) or `calibrate-scan` (`calibrate scara --image FILE --dpi 600`, with
+//!   `-o out/scara.json --plot out/found.png`);
 //! - `exit`: the expected exit code (`1` for every error; `0` for the documented cases that only warn);
 //! - `machine`: `cartesian`/`polar`/`scara` (an example machine) or a file name in the case folder; without
 //!   it, the case's `printer.cfg` if it has one, else the example Cartesian machine;
@@ -157,6 +158,13 @@ fn run_case(case: &Path) -> Result<(), String> {
         }
         "stats" => {
             command.arg("stats").arg(&input);
+        }
+        "calibrate-scan" => {
+            command.args(["calibrate", "scara", "-c"]).arg(&config);
+            command
+                .args(["--image", &input, "--dpi", "600", "-o"])
+                .arg(out.join("scara.json"));
+            command.arg("--plot").arg(out.join("found.png"));
         }
         other => return Err(format!("unknown command `{other}`")),
     }

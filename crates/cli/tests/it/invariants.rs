@@ -18,7 +18,7 @@ const KIND_SWITCHES: [(&str, &str); 4] = [
         "centre correction rewrites a polar machine's arm offsets",
     ),
     (
-        "cli/src/cmd/calibrate.rs",
+        "cli/src/cmd/calibrate/mod.rs",
         "SCARA identification fits a SCARA's lengths, offsets and zeros",
     ),
     (

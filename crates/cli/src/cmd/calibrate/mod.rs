@@ -1,5 +1,7 @@
 //! `jointspace calibrate`: the polar bed's rotation centre from a Hall-sensor magnet scan (simulated or logged),
-//! and SCARA arm geometry from measured nozzle positions.
+//! and SCARA arm geometry from measured nozzle positions or from a flatbed scan of the printed pattern (`scan`).
+
+mod scan;
 
 use crate::magnets::{SimulatedBed, draw_magnet_map, simulate_scan};
 use crate::report;
@@ -74,15 +76,32 @@ pub struct CentreArgs {
 pub struct ScaraArgs {
     /// Measurements: the file `calibrate scara-pattern` (or `JOINTSPACE_SCARA_PATTERN`) wrote, filled in: an optional
     /// `frame,standard|xscara` line, then CSV `motor_a_deg,motor_b_deg,x_mm,y_mm` (x, y: the printer's X and Y).
-    #[arg(long, value_name = "CSV")]
-    pub measurements: PathBuf,
+    /// With `--image`, the file as written (x_mm and y_mm may stay empty): its poses are the pattern's.
+    #[arg(long, value_name = "CSV", required_unless_present = "image")]
+    pub measurements: Option<PathBuf>,
+    /// A flatbed scan of the printed pattern (PNG or JPEG, colour or grey, 300–1200 dpi): the crosses are found on
+    /// it and matched to the pattern's poses (the `--measurements` file's, else the pattern this config makes).
+    #[arg(long, value_name = "PNG|JPEG")]
+    pub image: Option<PathBuf>,
+    /// The scan's resolution: sets its scale when no `--reference` is given (the scanner's own scale error, typically
+    /// 0.1–0.5 %, then goes into both link lengths).
+    #[arg(long, value_name = "DPI", requires = "image")]
+    pub dpi: Option<f64>,
+    /// The scan's scale from calipers: `A,B=MM`, the distance between crosses A and B (the pattern's numbers; the
+    /// pattern names a good pair) measured across their strokes along Y.
+    #[arg(long, value_name = "A,B=MM", requires = "image")]
+    pub reference: Option<String>,
+    /// Picture of the scan with each cross found, its pose number and its residual after the fit (PNG).
+    #[arg(long, value_name = "PNG", requires = "image")]
+    pub plot: Option<PathBuf>,
     /// Configuration whose geometry starts the fit and whose frame the file must state (default: FEKT-SCARA
     /// 100/100 mm, ECR 3).
     #[arg(short = 'c', long = "config")]
     pub config: Option<PathBuf>,
-    /// How the cross centres were measured; gives the measurement noise the residuals are judged against.
-    #[arg(long, value_enum, default_value_t = Method::Calipers)]
-    pub method: Method,
+    /// How the cross centres were measured; gives the measurement noise the residuals are judged against
+    /// (default: calipers, or scanner with `--image`).
+    #[arg(long, value_enum)]
+    pub method: Option<Method>,
     /// Measurement noise (mm, 1σ per coordinate), instead of the method's (calipers 0.02, scanner 0.03,
     /// microscope 0.005).
     #[arg(long, value_name = "MM")]
@@ -260,19 +279,20 @@ fn simulated_bed(args: &CentreArgs) -> miette::Result<SimulatedBed> {
 }
 
 fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
-    let (start, config_frame) = start_geometry(args.config.as_deref())?;
-    crate::output::register_input(&args.measurements);
-    let name = args.measurements.display().to_string();
-    let text = std::fs::read_to_string(&args.measurements)
-        .map_err(|e| miette::miette!("cannot read {name}: {e}"))?;
-    let file = scara::parse_measurement_file(&text, &name).map_err(|e| miette::miette!("{e}"))?;
-    let frame = measurement_frame(&file, config_frame, &name)?;
-    let noise = args
-        .noise
-        .unwrap_or_else(|| scara::MeasuringMethod::from(args.method).noise());
-    if !(noise.is_finite() && noise > 0.0) {
-        miette::bail!("--noise must be a positive number of mm, not {noise}");
+    if let Some(image) = &args.image {
+        return scan::scara_scan(&args, image);
     }
+    let (start, config_frame) = start_geometry(args.config.as_deref())?;
+    let Some(path) = &args.measurements else {
+        miette::bail!("give --measurements FILE or --image SCAN");
+    };
+    crate::output::register_input(path);
+    let name = path.display().to_string();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| miette::miette!("cannot read {name}: {e}"))?;
+    let file = scara::parse_measurement_file(&text, &name).map_err(|e| miette::miette!("{e}"))?;
+    let frame = measurement_frame(file.frame, config_frame, &name)?;
+    let noise = noise_of(&args, Method::Calipers)?;
     let data = &file.rows;
     let fit = scara::identify_in_frame(data, &start, frame).map_err(|e| miette::miette!("{e}"))?;
     let verdict = scara::judge(data, &fit, &start, frame, noise);
@@ -310,13 +330,24 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
     Ok(ExitCode::FAILURE)
 }
 
+/// The measuring noise (mm): `--noise`, else the method's (`fallback` when none is given).
+fn noise_of(args: &ScaraArgs, fallback: Method) -> miette::Result<f64> {
+    let noise = args
+        .noise
+        .unwrap_or_else(|| scara::MeasuringMethod::from(args.method.unwrap_or(fallback)).noise());
+    if !(noise.is_finite() && noise > 0.0) {
+        miette::bail!("--noise must be a positive number of mm, not {noise}");
+    }
+    Ok(noise)
+}
+
 /// The frame the measurements count their motor angles in: the file's, which must be the machine's.
 fn measurement_frame(
-    file: &scara::MeasurementFile,
+    stated: Option<(ScaraFrame, usize)>,
     config: Option<ScaraFrame>,
     name: &str,
 ) -> miette::Result<ScaraFrame> {
-    match (file.frame, config) {
+    match (stated, config) {
         (Some((stated, line)), Some(machine)) if stated != machine => Err(miette::miette!(
             "{name}:{line}:1: the measurements are in frame `{}`, the configured machine's frame is `{}`: \
              they were taken on another machine or the config's `frame` is wrong",

@@ -183,18 +183,27 @@
     });
     if (E.limits.length) row(l, ["all together add", hms(E.total - E.without_motor_limits)], "limits-add",
       E.total - E.without_motor_limits);
+    S.motors.forEach((m, i) => {
+      for (const kind of ["speed", "accel"]) {
+        const values = array("series" + i + "-" + kind);
+        if (!values) continue;
+        const peak = values.reduce((a, b) => Math.max(a, b), 0), limit = limitOf(i, kind);
+        const unit = m.unit + (kind === "speed" ? "/s" : "/s²");
+        row(l, [m.name + " peak " + (kind === "speed" ? "speed" : "acceleration") + (limit ? " (limit " + fmt(limit) + ")" : ""),
+          fmt(peak) + " " + unit], "peak-" + m.name + "-" + kind, peak);
+      }
+    });
     const f = $("features");
     E.features.forEach((p) => row(f, [p.name === null ? "(before the first marker)" : p.name, hms(p.time),
       p.lost ? "+" + hms(p.lost) : ""], null));
-    $("slowed-note").textContent = E.slowed_total + " moves slowed below a quarter of their speed" +
+    $("slowed-total").textContent = E.slowed_total + " moves slowed below a quarter of their speed" +
       (E.slowed.length < E.slowed_total ? " (the first " + E.slowed.length + " lines listed)" : "");
-    $("slowed-note").dataset.value = String(E.slowed_total);
-    $("slowed-note").id = "slowed-total";
+    $("slowed-total").dataset.value = String(E.slowed_total);
     E.slowed.slice(0, 500).forEach((s) => listLine($("slowed"), s.line,
       "line " + s.line + ": " + fmt(s.allowed) + " of " + fmt(s.requested) + " mm/s, " + why(s.line)));
-    $("refused-note").textContent = S.refused_total ? S.refused_total + " moves the machine refused" +
+    $("refused-total").textContent = S.refused_total ? S.refused_total + " moves the machine refused" +
       " (the plan goes on from where the machine stays)" : "none";
-    $("refused-note").dataset.value = String(S.refused_total);
+    $("refused-total").dataset.value = String(S.refused_total);
     S.refused.slice(0, 500).forEach((r) => listLine($("refused"), r.line, "line " + r.line + ": " + r.reason));
   }
   function listLine(list, line, text) {
@@ -391,7 +400,7 @@
   const gl3 = { gl: null, count: [], yaw: -0.6, pitch: 0.9, dist: 1, centre: [0, 0, 0] };
   function initGl() {
     const c = $("gl-canvas");
-    const gl = c.getContext("webgl", { antialias: true, preserveDrawingBuffer: true });
+    const gl = c.getContext("webgl", { antialias: true });
     if (!gl) { $("gl-note").textContent = "This browser gives the page no WebGL: the 3D view is not available."; return; }
     const shader = (type, src) => { const s = gl.createShader(type); gl.shaderSource(s, src); gl.compileShader(s); return s; };
     const prog = gl.createProgram();
@@ -418,7 +427,7 @@
     for (let k = 0; k < pos.length; k++) { lo[k % 3] = Math.min(lo[k % 3], pos[k]); hi[k % 3] = Math.max(hi[k % 3], pos[k]); }
     if (!keep.length) { lo = [0, 0, 0]; hi = [1, 1, 1]; }
     gl3.centre = lo.map((v, k) => (v + hi[k]) / 2);
-    gl3.dist = 1.6 * Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1);
+    gl3.dist = 2.2 * Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1);
     gl3.gl = gl; gl3.prog = prog;
     gl.enable(gl.DEPTH_TEST);
     let spin = null;
@@ -575,6 +584,7 @@
   numbers();
   setup();
   plots();
+  document.body.dataset.loadMs = String(Math.round(performance.now()));
   $("status").textContent = errors.length ? "errors" : "ready";
   document.body.dataset.ready = errors.length ? "errors" : "yes";
 })();

@@ -18,3 +18,4 @@ mod limits;
 mod output;
 mod simulate;
 mod structure;
+mod view;

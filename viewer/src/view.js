@@ -256,8 +256,11 @@
   function mapCanvas(id) {
     if (mapImage[id] !== undefined) return mapImage[id];
     const m = S.map;
-    const values = m.nx ? array(id === "reach" ? "map-reach" : "map-" + id) : null;
-    if (!values) return (mapImage[id] = null);
+    const raw = m.nx ? array(id === "reach" ? "map-reach" : "map-" + id) : null;
+    if (!raw) return (mapImage[id] = null);
+    // Resolution layers: 16-bit fractions of the layer's largest value, 65535 where unreachable.
+    const layer = m.layers.find((l) => l.id === id);
+    const values = id === "reach" ? raw : Array.from(raw, (v) => (v === 65535 ? NaN : (v / 65534) * layer.max));
     const c = document.createElement("canvas");
     c.width = m.nx; c.height = m.ny;
     const g = c.getContext("2d"), img = g.createImageData(m.nx, m.ny);

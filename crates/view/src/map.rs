@@ -7,7 +7,9 @@ use serde_json::json;
 use crate::encode::Array;
 
 /// Cells across the map's wider side.
-const CELLS_ACROSS: f64 = 240.0;
+const CELLS_ACROSS: f64 = 200.0;
+/// An unreachable cell in a resolution layer (reachable ones are 0 … 65534 of the layer's largest value).
+const UNREACHABLE: u16 = u16::MAX;
 
 /// The map's description (JSON) and its layers (`reach`, one resolution per planar motor, the worst direction).
 #[derive(Debug, Clone)]
@@ -29,13 +31,15 @@ pub fn map(params: &kinematics::MachineParams) -> Result<MapData, String> {
         }
         Outline::Rectangle { min, max } => json!({"rectangle": {"min": min, "max": max}}),
     };
+    // Each resolution layer as 16-bit fractions of its largest value (its `max`).
     let values = |kind| {
-        Array::F32(
-            map.resolution_values(kind)
-                .iter()
-                .map(|v| v.map_or(f32::NAN, |v| v as f32))
-                .collect(),
-        )
+        let values = map.resolution_values(kind);
+        let max = values.iter().flatten().fold(0.0, |m: f64, v| m.max(*v));
+        let cells = values
+            .iter()
+            .map(|v| v.map_or(UNREACHABLE, |v| (v / max * 65534.0).round() as u16))
+            .collect();
+        (Array::U16(cells), max)
     };
     let mut arrays = vec![(
         "map-reach".to_string(),
@@ -43,20 +47,24 @@ pub fn map(params: &kinematics::MachineParams) -> Result<MapData, String> {
     )];
     let mut layers = Vec::new();
     for (i, name) in map.motor_names.iter().enumerate() {
-        arrays.push((format!("map-motor{i}"), values(ResolutionKind::Motor(i))));
+        let (cells, max) = values(ResolutionKind::Motor(i));
+        arrays.push((format!("map-motor{i}"), cells));
         layers.push(json!({
             "id": format!("motor{i}"),
-            "title": format!("nozzle travel that steps {name} once (mm, along its steepest direction)"),
+            "max": max,
+            "title": format!("nozzle travel that steps {name} once, along its steepest direction (mm)"),
             "note": format!(
                 "small: {name} steps for little nozzle travel here (it turns fast and its steps come often); \
                  it is not by itself where the nozzle is placed finely"
             ),
         }));
     }
-    arrays.push(("map-machine".into(), values(ResolutionKind::Machine)));
+    let (cells, max) = values(ResolutionKind::Machine);
+    arrays.push(("map-machine".into(), cells));
     layers.push(json!({
         "id": "machine",
-        "title": "positioning resolution in the worst direction (mm of nozzle travel per step of both motors)",
+        "max": max,
+        "title": "positioning resolution: nozzle travel per motor step in the worst direction (mm; small is fine)",
         "note": "small: fine positioning in every direction; large: coarse",
     }));
     let meta = json!({

@@ -123,7 +123,7 @@
         if (present.has(c)) entry(hex(CAUSE_COLOURS[c % CAUSE_COLOURS.length]), label, c);
       });
       $("scale-note").textContent = "Each move in the colour of what holds it below its requested speed " +
-        "(a motor at 90 % of its limit or more names that limit).";
+        "(a motor limit names it where the move reaches the cap that limit puts on it).";
       return;
     }
     const scale = {
@@ -169,6 +169,8 @@
     row(t, ["planned (jointspace)", hms(E.total)], "total", E.total);
     row(t, ["Klipper's planner without the motor limits", hms(E.without_motor_limits)], "without-limits",
       E.without_motor_limits);
+    if (E.klipper_rule !== undefined) row(t, ["Klipper's own rule (whole moves slowed near the centre)", hms(E.klipper_rule)],
+      "klipper-rule", E.klipper_rule);
     if (E.klipper_exit_time !== undefined) row(t, ["Klipper logs at the end (batch)", hms(E.klipper_exit_time)],
       "klipper-exit", E.klipper_exit_time);
     row(t, ["the slicer's estimate", E.slicer === null ? "none" : hms(E.slicer)], "slicer", E.slicer);
@@ -213,16 +215,19 @@
     li.addEventListener("click", () => focusLine(line));
     list.appendChild(li);
   }
-  const byLine = (function () {
-    const index = new Map();
-    for (let i = 0; i < D.n; i++) {
-      const l = D.line[i], k = index.get(l);
-      if (k === undefined || D.cause[i] > D.cause[k]) index.set(l, i);
-    }
-    return index;
-  })();
+  // The drawn segment of a G-code line (the one with the most telling cause): segments are in line order (a
+  // merged one carries its first line), refused moves after them.
+  function segmentOfLine(line) {
+    let lo = 0, hi = refusedFirst;
+    while (lo < hi) { const mid = (lo + hi) >> 1; if (D.line[mid] < line) lo = mid + 1; else hi = mid; }
+    let best;
+    for (let i = lo; i < refusedFirst && D.line[i] === line; i++) if (best === undefined || D.cause[i] > D.cause[best]) best = i;
+    for (let k = 0; k < S.refused.length; k++) if (S.refused[k].line === line) best = refusedFirst + k;
+    if (best === undefined && lo > 0 && lo <= refusedFirst) best = lo - 1;
+    return best;
+  }
   function why(line) {
-    const i = byLine.get(line);
+    const i = segmentOfLine(line);
     if (i === undefined) return "not drawn";
     let text = S.limits.labels[D.cause[i]];
     const c = S.map && S.map.outline && S.map.outline.circle;
@@ -522,11 +527,14 @@
 
   // ---- controls ----------------------------------------------------------------------------------------------
   function redraw() {
+    if (state.view === "3d" && !gl3.tried) { gl3.tried = true; initGl(); colour3d(); }
     const l = S.layers[state.layer];
     $("layer-name").textContent = l ? l.name + (l.z !== null ? " (Z " + fmt(l.z) + ")" : "") : "";
     const part = l && E.layers.find((p) => p.line === l.line);
     $("layer-info").textContent = l ? "Layer " + l.name + ": " + l.count + " segments drawn of " + l.planned + " planned" +
-      (part ? ", " + hms(part.time) + (part.lost ? " (the motor limits add " + hms(part.lost) + ")" : "") : "") : "";
+      (part ? ", " + hms(part.time) + (part.lost ? " (the motor limits add " + hms(part.lost) + ")" : "") : "") +
+      (l.whole ? "" : ". The page is over its size: this layer shows only its limit hits, slowed moves and refusals " +
+        "(every " + S.stride + "th layer is whole).") : "";
     legend(state.mode);
     const m = S.map.layers && S.map.layers.find((x) => x.id === state.map);
     const img = state.map !== "none" && state.map !== "reach" ? mapCanvas(state.map) : null;
@@ -546,8 +554,7 @@
     }
   }
   function focusLine(line) {
-    let i = byLine.get(line);
-    if (i === undefined) for (let k = 0; k < D.n; k++) if (D.line[k] >= line) { i = k; break; }
+    const i = segmentOfLine(line);
     if (i === undefined) return;
     state.focus = i; state.layer = layerOf[i]; $("layer").value = String(state.layer);
     state.cx = (D.from[3 * i] + D.to[3 * i]) / 2; state.cy = (D.from[3 * i + 1] + D.to[3 * i + 1]) / 2;
@@ -579,8 +586,6 @@
     if (hash.get("layer")) state.layer = Math.min(S.layers.length - 1, Math.max(0, Number(hash.get("layer"))));
     layer.value = String(state.layer);
     fit();
-    initGl();
-    colour3d();
     if (hash.get("line")) focusLine(Number(hash.get("line"))); else redraw();
   }
 

@@ -66,6 +66,11 @@ pub struct Estimate {
     /// with it (the end of the print, or where its step generation could restart when that is later).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub klipper_exit_time: Option<f64>,
+    /// A polar machine with `max_angular_velocity`: the planned time under Klipper's own rule instead of the
+    /// motor limits (whole moves slowed by the bed's speed at their closest approach to the centre, as Klipper's
+    /// `polar` and the plug-in's `centre_slowdown: klipper` plan), in s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub klipper_rule: Option<f64>,
     /// The slicer's own estimate (s), the first the file states.
     pub slicer: Option<f64>,
     pub layers: Vec<Part>,
@@ -137,7 +142,21 @@ pub fn estimate_watched(
             lost: time - unlimited.total,
         });
     }
-    Ok(planned.into_estimate(&unlimited, limits))
+    let klipper_rule = match (
+        setup.kinematics.turning_limits(),
+        machine.config.limits.max_angular_velocity,
+    ) {
+        (Some(kinematics::TurningLimits::Bed), Some(v_rad_max)) => {
+            let mut rule = free.clone();
+            rule.planner.klipper_centre_rule = Some(v_rad_max);
+            let pass = breakdown(&rule, open, name, &|_| false, &mut (), &mut NoObserver)?;
+            Some(pass.total)
+        }
+        _ => None,
+    };
+    let mut estimate = planned.into_estimate(&unlimited, limits);
+    estimate.klipper_rule = klipper_rule;
+    Ok(estimate)
 }
 
 /// Sees nothing (the passes no one watches).
@@ -267,6 +286,7 @@ impl Breakdown {
             total: self.total,
             without_motor_limits: unlimited.total,
             klipper_exit_time: self.summary.klipper_exit_time,
+            klipper_rule: None,
             slicer: self.slicer,
             layers: lost(self.layers, &unlimited.layers),
             features: lost(self.features, &unlimited.features),

@@ -11,7 +11,7 @@ use gcode::{Command, Meta, Spanned};
 use printjob::Observer;
 use trapq::{Motion, MoveSink, Queue, SinkError, TrapezoidMove};
 
-use crate::decimate::{self, EXTRUDING, JUMP, SLOWED, Scales, Segment};
+use crate::decimate::{self, EXTRUDING, JUMP, MOTORS, SLOWED, Scales, Segment};
 use crate::motors::{FIRST_MOTOR, MotorProbe, REFUSED};
 use crate::series::Series;
 
@@ -19,6 +19,9 @@ use crate::series::Series;
 const JOINED: f32 = 1e-3;
 /// The most refused moves kept (all are counted).
 const REFUSED_KEPT: usize = 10_000;
+/// The largest merging tolerance (mm): a few pixels with the whole bed on the screen. A print that still has more
+/// segments than the budget keeps them.
+pub const MAX_TOLERANCE: f64 = 0.5;
 
 /// A layer: from its marker's line (or the Z its first extrusion reached, without markers) on.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,6 +33,9 @@ pub struct Layer {
     pub segments: Vec<Segment>,
     /// Segments before merging.
     pub planned: usize,
+    /// All its segments are on the page; `false`: only the telling ones ([`decimate::telling`]), the page being
+    /// over its budget.
+    pub whole: bool,
 }
 
 /// A move the machine refused, where it would have gone.
@@ -46,7 +52,7 @@ pub struct Refused {
 pub struct Budget {
     /// Merging tolerance to start with (mm).
     pub tolerance: f64,
-    /// The most segments per layer, and in all (flagged segments are kept beyond these).
+    /// The most segments per layer, and in all (beyond these only where the largest tolerance leaves more).
     pub per_layer: usize,
     pub total: usize,
     /// The most points of the motor plots.
@@ -135,6 +141,10 @@ pub struct Collector {
     /// The current layer's segments, before merging.
     current: Vec<Segment>,
     kept: usize,
+    /// Merge every layer again when more than this many segments are kept.
+    recheck: usize,
+    /// Every `stride`-th layer is kept whole; the others only with their telling segments.
+    stride: usize,
     scales: Scales,
     series: Series,
     end: Option<[f32; 3]>,
@@ -158,6 +168,7 @@ pub fn collector(
         line: 0,
         segments: Vec::new(),
         planned: 0,
+        whole: true,
     };
     let collector = Collector {
         pending,
@@ -169,6 +180,8 @@ pub fn collector(
         layers: vec![first],
         current: Vec::new(),
         kept: 0,
+        recheck: budget.total,
+        stride: 1,
         scales,
         series: Series::new(budget.series),
         end: None,
@@ -186,6 +199,8 @@ pub struct Collected {
     pub scales: Scales,
     /// The merging tolerance the page was made with (mm).
     pub tolerance: f64,
+    /// Every `stride`-th layer is whole on the page.
+    pub stride: usize,
 }
 
 impl Collector {
@@ -220,6 +235,7 @@ impl Collector {
             line,
             segments: Vec::new(),
             planned: 0,
+            whole: true,
         });
     }
 
@@ -227,26 +243,37 @@ impl Collector {
     /// with twice the tolerance.
     fn close_layer(&mut self) {
         let segments = std::mem::take(&mut self.current);
+        let index = self.layers.len().saturating_sub(1);
+        let thin = self.stride > 1 && !index.is_multiple_of(self.stride);
+        let planned = segments.len();
+        let mut merged = decimate::merge(segments, self.tolerance, &self.scales);
+        let mut tolerance = self.tolerance;
+        while merged.len() > self.budget.per_layer && tolerance < MAX_TOLERANCE {
+            tolerance = (tolerance * 2.0).min(MAX_TOLERANCE);
+            merged = decimate::merge(merged, tolerance, &self.scales);
+        }
+        if thin {
+            merged = decimate::telling_only(merged);
+        }
         let Some(layer) = self.layers.last_mut() else {
             return;
         };
-        layer.planned += segments.len();
-        let mut merged = decimate::merge(segments, self.tolerance, &self.scales);
-        let mut tolerance = self.tolerance;
-        for _ in 0..8 {
-            if merged.len() <= self.budget.per_layer {
-                break;
-            }
-            tolerance *= 2.0;
-            merged = decimate::merge(merged, tolerance, &self.scales);
-        }
+        layer.planned += planned;
+        layer.whole &= !thin;
         self.kept += merged.len();
         layer.segments.extend(merged);
-        for _ in 0..16 {
-            if self.kept <= self.budget.total {
-                break;
-            }
-            self.tolerance *= 2.0;
+        if self.kept > self.recheck {
+            self.merge_all();
+        }
+    }
+
+    /// Merge every layer again with twice the tolerance until the page is within its budget; where even the largest
+    /// tolerance leaves more, keep fewer layers whole (every 2nd, 4th, …; the others keep their limit hits, slowed
+    /// moves, bed turns and refusals). Where even that leaves more, the next attempt waits until the page has
+    /// doubled, so the layers are merged again a few times over the whole print, not at every layer.
+    fn merge_all(&mut self) {
+        while self.kept > self.budget.total && self.tolerance < MAX_TOLERANCE {
+            self.tolerance = (self.tolerance * 2.0).min(MAX_TOLERANCE);
             self.kept = 0;
             for layer in &mut self.layers {
                 let segments = std::mem::take(&mut layer.segments);
@@ -254,6 +281,23 @@ impl Collector {
                 self.kept += layer.segments.len();
             }
         }
+        // Still over: every other layer of those kept whole keeps only its telling segments.
+        while self.kept > self.budget.total && self.stride < self.layers.len() {
+            self.stride *= 2;
+            self.kept = 0;
+            for (i, layer) in self.layers.iter_mut().enumerate() {
+                if layer.whole && !i.is_multiple_of(self.stride) {
+                    layer.segments = decimate::telling_only(std::mem::take(&mut layer.segments));
+                    layer.whole = false;
+                }
+                self.kept += layer.segments.len();
+            }
+        }
+        self.recheck = if self.kept > self.budget.total {
+            2 * self.kept
+        } else {
+            self.budget.total
+        };
     }
 
     /// Without layer markers, a new layer starts where an extruding move first reaches a higher Z: the last
@@ -305,8 +349,8 @@ impl Collector {
             requested: self.requested as f32,
             cause,
             flags,
-            motor_speed: motors.speed.iter().map(|v| *v as f32).collect(),
-            motor_accel: motors.accel.iter().map(|v| *v as f32).collect(),
+            motor_speed: fixed(&motors.speed),
+            motor_accel: fixed(&motors.accel),
         });
     }
 
@@ -332,8 +376,18 @@ impl Collector {
             series: self.series.columns(),
             scales: self.scales,
             tolerance: self.tolerance,
+            stride: self.stride,
         }
     }
+}
+
+/// The first [`MOTORS`] values.
+fn fixed(values: &[f64]) -> [f32; MOTORS] {
+    let mut out = [0.0; MOTORS];
+    for (o, v) in out.iter_mut().zip(values) {
+        *o = *v as f32;
+    }
+    out
 }
 
 /// Each full scale at least the value seen.
@@ -376,7 +430,7 @@ impl MoveSink for Collector {
 }
 
 /// Refused moves as the page draws them: a segment each, of the refusal's colour.
-pub fn refused_segments(refused: &[Refused], motors: usize) -> Vec<Segment> {
+pub fn refused_segments(refused: &[Refused]) -> Vec<Segment> {
     refused
         .iter()
         .map(|r| Segment {
@@ -389,8 +443,8 @@ pub fn refused_segments(refused: &[Refused], motors: usize) -> Vec<Segment> {
             requested: 0.0,
             cause: REFUSED,
             flags: JUMP,
-            motor_speed: vec![0.0; motors],
-            motor_accel: vec![0.0; motors],
+            motor_speed: [0.0; MOTORS],
+            motor_accel: [0.0; MOTORS],
         })
         .collect()
 }

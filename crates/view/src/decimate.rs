@@ -1,9 +1,10 @@
-//! Fewer segments for display: consecutive segments that would be drawn in the same colour in every colouring
-//! the page offers (same cause, extruding or not, speed and motor use within one colour step) and that lie within
-//! `tolerance` of one straight line become that line. A flagged segment (a motor limit holding it, a move slowed
-//! hard, a bed turn, a refusal) is never merged: every one of them stays on the page.
+//! Fewer segments for display: consecutive segments of the same look (the limit that holds them, extruding or
+//! not, slowed hard or not, speed within one colour step) that lie within `tolerance` of one straight line become
+//! that line, with the peaks of its pieces (so a motor's speed against its limit shows the run's highest). What a segment shows — the limit that holds it, a move slowed
+//! hard — is part of its look, so a merged segment shows it where every one of its pieces did: no limit hit leaves
+//! the page. A bed turn and a refusal are never merged.
 
-use crate::motors::{ACCELERATION, AT_REQUESTED, Cause, OTHER};
+use crate::motors::{BED_TURN, Cause, REFUSED};
 
 /// The segment extrudes.
 pub const EXTRUDING: u8 = 1;
@@ -15,7 +16,9 @@ pub const JUMP: u8 = 4;
 /// Colour steps the page uses for speeds and motor use: segments in one step look alike.
 const STEPS: f64 = 24.0;
 /// The most segments merged into one (bounds the deviation check's work).
-const MOST_MERGED: usize = 256;
+const MOST_MERGED: usize = 32;
+/// The motors a segment records (every machine here has three: two in the plane and Z).
+pub const MOTORS: usize = 3;
 
 /// A straight piece of the planned path, as the page draws it.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,27 +36,49 @@ pub struct Segment {
     pub cause: Cause,
     pub flags: u8,
     /// Each motor's peak speed and acceleration (motor units).
-    pub motor_speed: Vec<f32>,
-    pub motor_accel: Vec<f32>,
+    pub motor_speed: [f32; MOTORS],
+    pub motor_accel: [f32; MOTORS],
 }
 
 impl Segment {
-    /// Kept as it is, whatever the tolerance.
-    pub fn flagged(&self) -> bool {
-        self.flags & SLOWED != 0 || !matches!(self.cause, AT_REQUESTED | ACCELERATION | OTHER)
+    /// Kept as it is, whatever the tolerance: a bed turn, a refusal.
+    pub fn fixed(&self) -> bool {
+        matches!(self.cause, BED_TURN | REFUSED)
     }
 }
 
-/// What a merge must keep equal: the colour of the segment in every colouring.
-#[derive(Debug, Clone, PartialEq)]
-struct Look {
-    cause: Cause,
-    extruding: bool,
-    speed: i64,
-    motors: Vec<i64>,
+/// A segment every layer keeps on the page: a limit holds it, it was slowed hard, the bed turns, or it is refused.
+pub fn telling(s: &Segment) -> bool {
+    s.flags & SLOWED != 0 || s.cause >= BED_TURN
 }
 
-/// `scales`: the speed and each motor's speed and acceleration that fill the page's colour scales.
+/// Only the telling segments of a layer, each starting a new chain where the one before it is gone.
+pub fn telling_only(segments: Vec<Segment>) -> Vec<Segment> {
+    let mut out = Vec::new();
+    let mut dropped = false;
+    for mut s in segments {
+        if telling(&s) {
+            if dropped {
+                s.flags |= JUMP;
+            }
+            dropped = false;
+            out.push(s);
+        } else {
+            dropped = true;
+        }
+    }
+    out
+}
+
+/// What a merge must keep equal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Look {
+    cause: Cause,
+    flags: u8,
+    speed: i64,
+}
+
+/// `scales`: the speed that fills the page's colour scale.
 fn look(s: &Segment, scales: &Scales) -> Look {
     let step = |value: f32, full: f64| {
         if full > 0.0 {
@@ -62,18 +87,10 @@ fn look(s: &Segment, scales: &Scales) -> Look {
             0
         }
     };
-    let motors = s
-        .motor_speed
-        .iter()
-        .zip(&scales.motor_speed)
-        .chain(s.motor_accel.iter().zip(&scales.motor_accel))
-        .map(|(v, full)| step(*v, *full))
-        .collect();
     Look {
         cause: s.cause,
-        extruding: s.flags & EXTRUDING != 0,
+        flags: s.flags & (EXTRUDING | SLOWED),
         speed: step(s.speed, scales.speed),
-        motors,
     }
 }
 
@@ -112,8 +129,8 @@ pub fn merge(input: Vec<Segment>, tolerance: f64, scales: &Scales) -> Vec<Segmen
         let this = look(&s, scales);
         let joins = match (out.last(), &current) {
             (Some(last), Some(l)) => {
-                !s.flagged()
-                    && !last.flagged()
+                !s.fixed()
+                    && !last.fixed()
                     && s.flags & JUMP == 0
                     && *l == this
                     && inner.len() < MOST_MERGED
@@ -156,7 +173,7 @@ fn extend(last: &mut Segment, s: &Segment) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motors::FIRST_MOTOR;
+    use crate::motors::{AT_REQUESTED, FIRST_MOTOR};
 
     fn segment(line: u64, from: [f32; 2], to: [f32; 2], cause: Cause) -> Segment {
         Segment {
@@ -169,22 +186,22 @@ mod tests {
             requested: 50.0,
             cause,
             flags: EXTRUDING,
-            motor_speed: vec![1.0],
-            motor_accel: vec![1.0],
+            motor_speed: [1.0; MOTORS],
+            motor_accel: [1.0; MOTORS],
         }
     }
 
     fn scales() -> Scales {
         Scales {
             speed: 100.0,
-            motor_speed: vec![10.0],
-            motor_accel: vec![10.0],
+            motor_speed: vec![10.0; MOTORS],
+            motor_accel: vec![10.0; MOTORS],
         }
     }
 
     #[test]
-    fn a_gentle_curve_becomes_one_line_and_flagged_segments_stay() {
-        // A polyline bending by 0.01 mm, then one segment a motor limit held, then more of the curve.
+    fn a_gentle_curve_becomes_one_line_and_limit_hits_stay() {
+        // A polyline bending by 0.025 mm, then one segment a motor limit held, then more of the curve.
         let mut input: Vec<Segment> = (0..10u64)
             .map(|i| {
                 let x = i as f32;
@@ -202,6 +219,19 @@ mod tests {
         assert_eq!(merged[1], input[10]);
         // A tolerance below the bend keeps the curve's corners.
         assert!(merge(input, 0.001, &scales()).len() > 3);
+    }
+
+    #[test]
+    fn a_thinned_layer_keeps_its_limit_hits_as_chains_of_their_own() {
+        let input = vec![
+            segment(1, [0.0, 0.0], [1.0, 0.0], AT_REQUESTED),
+            segment(2, [1.0, 0.0], [2.0, 0.0], FIRST_MOTOR),
+            segment(3, [2.0, 0.0], [3.0, 0.0], FIRST_MOTOR),
+            segment(4, [3.0, 0.0], [4.0, 0.0], AT_REQUESTED),
+        ];
+        let kept = telling_only(input);
+        assert_eq!(kept.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 3]);
+        assert!(kept[0].flags & JUMP != 0 && kept[1].flags & JUMP == 0);
     }
 
     #[test]

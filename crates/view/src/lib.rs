@@ -45,7 +45,7 @@ impl Budget {
     pub const DEFAULT: Budget = Budget {
         tolerance: 0.02,
         per_layer: 40_000,
-        total: 250_000,
+        total: 400_000,
         series: 20_000,
     };
 }
@@ -106,6 +106,7 @@ pub fn plan(
                 kinematics::MotorUnit::Rad => "rad",
             },
         })
+        .take(decimate::MOTORS)
         .collect();
     let view = View {
         machine: kin.name(),

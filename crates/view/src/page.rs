@@ -88,7 +88,7 @@ fn summary(
         .iter()
         .map(|l| {
             let entry = json!({"name": l.name, "z": l.z, "line": l.line, "first": first,
-                "count": l.segments.len(), "planned": l.planned});
+                "count": l.segments.len(), "planned": l.planned, "whole": l.whole});
             first += l.segments.len();
             entry
         })
@@ -112,6 +112,7 @@ fn summary(
         "scales": {"speed": c.scales.speed, "motor_speed": c.scales.motor_speed,
                    "motor_accel": c.scales.motor_accel},
         "tolerance": c.tolerance,
+        "stride": c.stride,
         "segments": {"kept": first, "planned": c.layers.iter().map(|l| l.planned).sum::<usize>()},
         "series_points": c.series.time.len(),
         "map": view.map.as_ref().map_or_else(|e| json!({"error": e}), |m| m.meta.clone()),
@@ -122,7 +123,7 @@ fn summary(
 fn arrays(view: &View) -> Vec<(String, Array)> {
     let c = &view.collected;
     let motors = view.motors.len();
-    let refused = refused_segments(&c.refused, motors);
+    let refused = refused_segments(&c.refused);
     let all: Vec<&Segment> = c
         .layers
         .iter()

@@ -99,6 +99,13 @@ fn report(out: &Path, estimate: &printjob::Estimate, page: &view::View) -> Strin
         c.tolerance,
         size as f64 / 1e6
     );
+    if c.stride > 1 {
+        text += &format!(
+            "; over --max-segments: every {}th layer whole, the others with their limit hits, slowed moves and \
+             refusals",
+            c.stride
+        );
+    }
     if c.refused_total > 0 {
         text += &format!("; {} refused moves shown at their lines", c.refused_total);
     }

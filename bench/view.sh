@@ -7,7 +7,8 @@
 # headless Chromium: the time from navigation until the page's script has drawn everything (its own
 # `performance.now()`, written into the page as data-load-ms), for the layer view and the 3D view, and the browser's
 # whole run (which includes writing out the page's tens of MB of DOM). Not part of `cargo test`.
-# usage: bench/view.sh [SIZE_MB]      (needs ../shared and Debian's chromium; builds what it runs)
+# usage: bench/view.sh [SIZE_MB] [polar]   (needs ../shared and Debian's chromium; builds what it runs; `polar`: that
+#        case only)
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 SHARED=$ROOT/../shared
@@ -43,8 +44,10 @@ one_case() {  # name, case folder, config
   done
 }
 
-one_case "Cartesian, no motor limits" "$SHARED/golden/cartesian-prusa-minicube-arcs" \
-  "$SHARED/golden/cartesian-prusa-minicube-arcs/printer.cfg"
+if [ "${2:-}" != polar ]; then
+  one_case "Cartesian, no motor limits" "$SHARED/golden/cartesian-prusa-minicube-arcs" \
+    "$SHARED/golden/cartesian-prusa-minicube-arcs/printer.cfg"
+fi
 sed 's/^kinematics: polar$/kinematics: polar\nmax_angular_velocity: 5\nmax_angular_accel: 200/' \
   "$SHARED/golden/polar-prusa-minicube-arcs/printer.cfg" > "$WORK/polar.cfg"
 one_case "polar, bed limited to 5 rad/s" "$SHARED/golden/polar-prusa-minicube-arcs" "$WORK/polar.cfg"

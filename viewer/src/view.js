@@ -533,8 +533,8 @@
     const part = l && E.layers.find((p) => p.line === l.line);
     $("layer-info").textContent = l ? "Layer " + l.name + ": " + l.count + " segments drawn of " + l.planned + " planned" +
       (part ? ", " + hms(part.time) + (part.lost ? " (the motor limits add " + hms(part.lost) + ")" : "") : "") +
-      (l.whole ? "" : ". The page is over its size: this layer shows only its limit hits, slowed moves and refusals " +
-        "(every " + S.stride + "th layer is whole).") : "";
+      (l.whole ? "" : ". The page is over its size: this layer shows only its limit hits, slowed moves and refusals (runs of one kind as chords) " +
+        "(" + (S.stride === 2 ? "every other layer" : "every " + S.stride + "th layer") + " is whole).") : "";
     legend(state.mode);
     const m = S.map.layers && S.map.layers.find((x) => x.id === state.map);
     const img = state.map !== "none" && state.map !== "reach" ? mapCanvas(state.map) : null;

@@ -33,8 +33,8 @@ pub struct Layer {
     pub segments: Vec<Segment>,
     /// Segments before merging.
     pub planned: usize,
-    /// All its segments are on the page; `false`: only the telling ones ([`decimate::telling`]), the page being
-    /// over its budget.
+    /// All its segments are on the page; `false`: only the telling ones ([`decimate::telling`]), runs of one look
+    /// as chords, the page being over its budget.
     pub whole: bool,
 }
 
@@ -253,7 +253,7 @@ impl Collector {
             merged = decimate::merge(merged, tolerance, &self.scales);
         }
         if thin {
-            merged = decimate::telling_only(merged);
+            merged = self.thinned(merged);
         }
         let Some(layer) = self.layers.last_mut() else {
             return;
@@ -287,7 +287,8 @@ impl Collector {
             self.kept = 0;
             for (i, layer) in self.layers.iter_mut().enumerate() {
                 if layer.whole && !i.is_multiple_of(self.stride) {
-                    layer.segments = decimate::telling_only(std::mem::take(&mut layer.segments));
+                    let segments = decimate::telling_only(std::mem::take(&mut layer.segments));
+                    layer.segments = decimate::merge_coarse(segments, &self.scales);
                     layer.whole = false;
                 }
                 self.kept += layer.segments.len();
@@ -298,6 +299,11 @@ impl Collector {
         } else {
             self.budget.total
         };
+    }
+
+    /// A layer not kept whole: its telling segments, runs of one look drawn as chords.
+    fn thinned(&self, segments: Vec<Segment>) -> Vec<Segment> {
+        decimate::merge_coarse(decimate::telling_only(segments), &self.scales)
     }
 
     /// Without layer markers, a new layer starts where an extruding move first reaches a higher Z: the last

@@ -121,12 +121,25 @@ fn distance(p: [f32; 3], a: [f32; 3], b: [f32; 3]) -> f64 {
 
 /// The segments of `input` merged where they look alike and stay within `tolerance` mm of a straight line.
 pub fn merge(input: Vec<Segment>, tolerance: f64, scales: &Scales) -> Vec<Segment> {
+    merge_by(input, tolerance, scales, false)
+}
+
+/// [`merge`] where only what holds a segment and its flags must match (not its speed): for layers the page keeps
+/// only the telling segments of.
+pub fn merge_coarse(input: Vec<Segment>, scales: &Scales) -> Vec<Segment> {
+    merge_by(input, f64::INFINITY, scales, true)
+}
+
+fn merge_by(input: Vec<Segment>, tolerance: f64, scales: &Scales, coarse: bool) -> Vec<Segment> {
     let mut out: Vec<Segment> = Vec::with_capacity(input.len() / 2 + 1);
     // The inner points of the segment being grown, and its look.
     let mut inner: Vec<[f32; 3]> = Vec::new();
     let mut current: Option<Look> = None;
     for s in input {
-        let this = look(&s, scales);
+        let mut this = look(&s, scales);
+        if coarse {
+            this.speed = 0;
+        }
         let joins = match (out.last(), &current) {
             (Some(last), Some(l)) => {
                 !s.fixed()

@@ -100,10 +100,13 @@ fn report(out: &Path, estimate: &printjob::Estimate, page: &view::View) -> Strin
         size as f64 / 1e6
     );
     if c.stride > 1 {
+        let which = if c.stride == 2 {
+            "every other layer".to_string()
+        } else {
+            format!("every {}th layer", c.stride)
+        };
         text += &format!(
-            "; over --max-segments: every {}th layer whole, the others with their limit hits, slowed moves and \
-             refusals",
-            c.stride
+            "; over --max-segments: {which} whole, the others with their limit hits, slowed moves and refusals"
         );
     }
     if c.refused_total > 0 {

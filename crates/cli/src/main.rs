@@ -47,6 +47,8 @@ enum Command {
     Check(cmd::run::CheckArgs),
     /// The time the printer will take (plan only): by layer, feature type and machine limit, beside the slicer's.
     Estimate(cmd::estimate::Args),
+    /// The planned print as one self-contained HTML page: toolpath, limits, motors against time, the estimate.
+    View(cmd::view::Args),
     /// Rewrite a G-code file's M73 progress lines and time comments with the planned times (slicer post-processing).
     PostProcess(cmd::post_process::Args),
     /// Draw where the machine reaches and its resolution (mm per motor step) across the bed.
@@ -82,6 +84,7 @@ fn main() -> ExitCode {
         Command::Run(args) => cmd::run::run(args),
         Command::Check(args) => cmd::run::check(args),
         Command::Estimate(args) => cmd::estimate::run(args),
+        Command::View(args) => cmd::view::run(args),
         Command::PostProcess(args) => cmd::post_process::run(args),
         Command::Workspace(args) => cmd::workspace::run(args),
         Command::Convert(args) => cmd::convert::run(args),

@@ -5,16 +5,29 @@ use plot::workspace::{Outline, ResolutionLayer, WorkspaceData};
 use serde::Serialize;
 use std::path::Path;
 
-/// The finest and coarsest resolution of one motor (or the machine's worst direction), with where they are.
+/// The smallest and largest nozzle travel per motor step of one motor (along its steepest direction) or of the
+/// machine's worst direction, with where they are. Small is fine positioning only for the worst direction: a
+/// motor's own value is smallest where it steps for the least nozzle travel (where it turns fastest), which for a
+/// SCARA's elbow is the rim, where the machine positions coarsest.
 #[derive(Debug, Clone, Serialize)]
 pub struct ResolutionRange {
     pub name: String,
+    /// What the numbers are.
+    pub quantity: String,
     /// mm of nozzle travel per step.
-    pub finest: f64,
-    pub finest_at: [f64; 2],
-    pub coarsest: f64,
-    pub coarsest_at: [f64; 2],
+    pub smallest: f64,
+    pub smallest_at: [f64; 2],
+    pub largest: f64,
+    pub largest_at: [f64; 2],
 }
+
+/// What a motor's map shows.
+pub fn motor_quantity(motor: &str) -> String {
+    format!("nozzle travel that steps {motor} once, along its steepest direction (mm)")
+}
+
+/// What the worst-direction map shows.
+pub const MACHINE_QUANTITY: &str = "positioning resolution: nozzle travel per motor step in the worst direction (mm; small is fine)";
 
 /// The numbers a builder compares machines by.
 #[derive(Debug, Clone, Serialize)]
@@ -54,21 +67,22 @@ pub fn map_and_draw(
         .map_err(|e| miette::miette!("cannot create {}: {e}", dir.display()))?;
     let written = plot::workspace::write_workspace_maps(&workspace_data(&map), dir, stem)
         .map_err(|e| miette::miette!("{e}"))?;
-    let range = |name: &str, r: &workspace::Range| ResolutionRange {
+    let range = |name: &str, quantity: String, r: &workspace::Range| ResolutionRange {
         name: name.to_string(),
-        finest: r.min.value,
-        finest_at: r.min.at,
-        coarsest: r.max.value,
-        coarsest_at: r.max.at,
+        quantity,
+        smallest: r.min.value,
+        smallest_at: r.min.at,
+        largest: r.max.value,
+        largest_at: r.max.at,
     };
     let mut resolution: Vec<ResolutionRange> = map
         .motor_names
         .iter()
         .zip(map.summary.per_motor.iter())
-        .filter_map(|(name, r)| r.as_ref().map(|r| range(name, r)))
+        .filter_map(|(name, r)| r.as_ref().map(|r| range(name, motor_quantity(name), r)))
         .collect();
     if let Some(r) = &map.summary.machine {
-        resolution.push(range("worst direction", r));
+        resolution.push(range("worst direction", MACHINE_QUANTITY.into(), r));
     }
     Ok(WorkspaceFigures {
         machine: map.machine.to_string(),
@@ -87,16 +101,13 @@ fn workspace_data(map: &WorkspaceMap) -> WorkspaceData {
         .enumerate()
         .map(|(i, name)| ResolutionLayer {
             name: name.clone(),
-            title: format!(
-                "{}: {name} resolution (mm of nozzle travel per step)",
-                map.machine
-            ),
+            title: format!("{}: {}", map.machine, motor_quantity(name)),
             values: map.resolution_values(ResolutionKind::Motor(i)),
         })
         .collect();
     resolutions.push(ResolutionLayer {
         name: "machine".into(),
-        title: format!("{}: worst-direction resolution (mm per step)", map.machine),
+        title: format!("{}: {MACHINE_QUANTITY}", map.machine),
         values: map.resolution_values(ResolutionKind::Machine),
     });
     let outline = match map.outline {
@@ -113,7 +124,7 @@ fn workspace_data(map: &WorkspaceMap) -> WorkspaceData {
     )];
     if let Some(m) = s.machine {
         notes.push(format!(
-            "worst-direction resolution {:.4} mm/step at ({:.0}, {:.0}) … {:.4} at ({:.0}, {:.0})",
+            "positioning resolution (worst direction) {:.4} mm/step at ({:.0}, {:.0}) … {:.4} at ({:.0}, {:.0})",
             m.min.value, m.min.at[0], m.min.at[1], m.max.value, m.max.at[0], m.max.at[1]
         ));
     }
@@ -174,7 +185,7 @@ mod tests {
             assert!(figures.reachable_area_mm2 > 0.0);
             for r in &figures.resolution {
                 assert!(
-                    r.finest > 0.0 && r.finest <= r.coarsest,
+                    r.smallest > 0.0 && r.smallest <= r.largest,
                     "{stem} {}: {r:?}",
                     r.name
                 );

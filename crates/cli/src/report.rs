@@ -68,25 +68,33 @@ pub fn run_summary(r: &RunSummary) -> String {
     out
 }
 
-/// A workspace map's numbers: reachable area, and the finest and coarsest resolution per motor.
+/// A workspace map's numbers: reachable area, and the smallest and largest nozzle travel per step of each motor
+/// and of the worst direction, with what each means.
 pub fn workspace(f: &WorkspaceFigures) -> String {
     let mut out = format!(
         "{} workspace: {:.0} mm² reachable\n",
         f.machine, f.reachable_area_mm2
     );
-    out += "  mm of nozzle travel per step   finest   at            coarsest   at\n";
+    out +=
+        "  nozzle travel per motor step (mm)           smallest   at              largest   at\n";
     for r in &f.resolution {
+        let name = if r.name == "worst direction" {
+            "both motors, worst direction".to_string()
+        } else {
+            format!("{}, steepest direction", r.name)
+        };
         out += &format!(
-            "  {:<28} {:>8.4}   ({:>5.0},{:>5.0})   {:>8.4}   ({:>5.0},{:>5.0})\n",
-            r.name,
-            r.finest,
-            r.finest_at[0],
-            r.finest_at[1],
-            r.coarsest,
-            r.coarsest_at[0],
-            r.coarsest_at[1]
+            "  {name:<42} {:>8.4}   ({:>5.0},{:>5.0})   {:>8.4}   ({:>5.0},{:>5.0})\n",
+            r.smallest,
+            r.smallest_at[0],
+            r.smallest_at[1],
+            r.largest,
+            r.largest_at[0],
+            r.largest_at[1]
         );
     }
+    out += "  (a motor's smallest travel is where it steps for the least nozzle motion, where it turns fastest;\n   \
+            the machine positions finest where the worst direction's travel is smallest)\n";
     out += &format!(
         "  {} pictures written (reach, per-motor and worst-direction maps)\n",
         f.pictures.len()

@@ -5,7 +5,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
-use printjob::{Estimate, EstimateError, Machine, PlanOptions};
+use printjob::{Estimate, EstimateError, Machine, PlanOptions, Reopen};
 
 /// Warnings shown on standard error (`--json` carries them all).
 const SHOWN_WARNINGS: usize = 10;
@@ -24,6 +24,20 @@ pub fn estimate_file(
     options: PlanOptions,
     wanted: &dyn Fn(&gcode::Command) -> bool,
 ) -> Result<(Estimate, String), Failure> {
+    let (estimate, name) = with_input(machine, file, |open, name| {
+        printjob::estimate(machine, options, open, name, wanted)
+    })?;
+    show_warnings(&estimate, &name);
+    Ok((estimate, name))
+}
+
+/// Run `plan` on the G-code of `file` (reopened for each planning pass; standard input held in memory), with
+/// `centre_slowdown` noted and the failures located as the estimate's are; the input's name beside the result.
+pub fn with_input<T>(
+    machine: &Machine,
+    file: &Path,
+    plan: impl FnOnce(Reopen<'_>, &str) -> Result<T, EstimateError>,
+) -> Result<(T, String), Failure> {
     note_centre_slowdown(machine);
     let plain = |message: String| Failure {
         place: None,
@@ -50,15 +64,19 @@ pub fn estimate_file(
             )),
         })
     };
-    let estimate =
-        printjob::estimate(machine, options, &open, &name, wanted).map_err(|e| match e {
-            EstimateError::Plan(e) => Failure {
-                place: Some(e.place()),
-                message: e.message(),
-                report: crate::diag::pipeline_error(file, e),
-            },
-            other => plain(other.to_string()),
-        })?;
+    let result = plan(&open, &name).map_err(|e| match e {
+        EstimateError::Plan(e) => Failure {
+            place: Some(e.place()),
+            message: e.message(),
+            report: crate::diag::pipeline_error(file, e),
+        },
+        other => plain(other.to_string()),
+    })?;
+    Ok((result, name))
+}
+
+/// The reader's and planner's warnings on standard error, the first few (`--json` carries them all).
+pub fn show_warnings(estimate: &Estimate, name: &str) {
     for w in estimate.warnings.iter().take(SHOWN_WARNINGS) {
         crate::errln!("{name}:{}:{}: warning: {}", w.line, w.column, w.message);
     }
@@ -66,7 +84,6 @@ pub fn estimate_file(
         let more = estimate.warnings.len() - SHOWN_WARNINGS;
         crate::errln!("{name}: {more} more warnings (`jointspace check` lists them all)");
     }
-    Ok((estimate, name))
 }
 
 /// `centre_slowdown: klipper` in `[printer]` is read by the plug-in only (its `check_move` then slows whole moves by

@@ -91,6 +91,11 @@ pub struct PlannerConfig {
     pub centre_turn: Option<CentreTurn>,
     /// Skip moves whose segment is unreachable (reported as warnings) instead of stopping with an error.
     pub skip_unreachable: bool,
+    /// Klipper's own polar rule (`polar.py`, the plug-in's `centre_slowdown: klipper`): a whole move is slowed,
+    /// speed and acceleration scaled from `max_velocity` and `max_accel`, so that the bed turns no faster than this
+    /// (rad/s) at the move's closest approach to X0 Y0. `None`: not applied (jointspace's exact rule is
+    /// `kinematic_limits`).
+    pub klipper_centre_rule: Option<f64>,
 }
 
 /// The Klipper-family host whose planning to reproduce (for comparisons with its batch-mode output).
@@ -147,6 +152,7 @@ impl PlannerConfig {
             skip_unreachable: false,
             kinematic_limits: Vec::new(),
             centre_turn: None,
+            klipper_centre_rule: None,
         }
     }
 }

@@ -355,6 +355,12 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
                 self.config.max_z_accel * z_ratio,
             );
         }
+        if let Some(v_rad_max) = self.config.klipper_centre_rule
+            && mv.is_kinematic
+            && (mv.axes_d[0] != 0.0 || mv.axes_d[1] != 0.0)
+        {
+            klipper_centre_slowdown(&mut mv, v_rad_max, &self.config.limits);
+        }
         if mv.axes_d[3] != 0.0 {
             check_extrusion(self.config.extruder.as_ref(), &mut mv)?;
         }
@@ -628,6 +634,36 @@ impl<'k, S: MoveSink> Toolhead<'k, S> {
             self.note_sink(flushed);
         }
     }
+}
+
+/// Klipper's polar rule (`polar.py`): the bed's speed at the move's closest approach to X0 Y0, at the move's cruise
+/// speed, kept within `v_rad_max` by slowing the whole move, speed and acceleration scaled from the configured
+/// `max_velocity` and `max_accel` (the plug-in's `centre_slowdown: klipper`, in Klipper's arithmetic).
+fn klipper_centre_slowdown(mv: &mut Move, v_rad_max: f64, limits: &VelocityLimits) {
+    let d = distance_to_centre(mv.start_pos, mv.end_pos);
+    if d == 0.0 {
+        return;
+    }
+    let v_angular = mv.max_cruise_v2.sqrt() / d;
+    if v_rad_max < v_angular {
+        let scale = v_rad_max / v_angular;
+        mv.limit_speed(limits.max_velocity * scale, limits.max_accel * scale);
+    }
+}
+
+/// Distance of the segment `p1`–`p2` from X0 Y0, operation for operation as the plug-in's `_distance_to_centre`.
+fn distance_to_centre(p1: [f64; 4], p2: [f64; 4]) -> f64 {
+    let (ab_x, ab_y) = (p2[0] - p1[0], p2[1] - p1[1]);
+    let (ap_x, ap_y) = (-p1[0], -p1[1]);
+    let dot = ab_x * ap_x + ab_y * ap_y;
+    let length = (ab_x.powi(2) + ab_y.powi(2)).sqrt();
+    if dot <= 0.0 {
+        return (ap_x.powi(2) + ap_y.powi(2)).sqrt();
+    }
+    if dot >= length.powi(2) {
+        return (p2[0].powi(2) + p2[1].powi(2)).sqrt();
+    }
+    (ab_x * ap_y - ab_y * ap_x).abs() / length
 }
 
 /// Hand a planned move's pieces to the sink: the toolhead's, and the extruder's when it extrudes.

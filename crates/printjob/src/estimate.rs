@@ -15,7 +15,7 @@ use machine::{Machine, MachineSetup, PlanOptions};
 use serde::Serialize;
 use trapq::{MoveSink, Queue, SinkError, TrapezoidMove};
 
-use crate::plan::{PipelineError, plan_gcode_observed};
+use crate::plan::{Observer, PipelineError, plan_gcode_watched};
 use crate::run::{WarningLine, warning_lines};
 
 /// A part of the print: a layer or a feature type.
@@ -66,6 +66,11 @@ pub struct Estimate {
     /// with it (the end of the print, or where its step generation could restart when that is later).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub klipper_exit_time: Option<f64>,
+    /// A polar machine with `max_angular_velocity`: the planned time under Klipper's own rule instead of the
+    /// motor limits (whole moves slowed by the bed's speed at their closest approach to the centre, as Klipper's
+    /// `polar` and the plug-in's `centre_slowdown: klipper` plan), in s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub klipper_rule: Option<f64>,
     /// The slicer's own estimate (s), the first the file states.
     pub slicer: Option<f64>,
     pub layers: Vec<Part>,
@@ -94,20 +99,42 @@ pub fn estimate(
     name: &str,
     wanted: &dyn Fn(&Command) -> bool,
 ) -> Result<Estimate, EstimateError> {
+    estimate_watched(
+        machine,
+        options,
+        open,
+        name,
+        wanted,
+        &mut (),
+        &mut NoObserver,
+    )
+}
+
+/// [`estimate`], handing the pass whose moves the estimate is (the machine with all its limits) to `moves` and
+/// `observer` as well: a consumer that shows the planned print beside its numbers plans nothing itself.
+pub fn estimate_watched(
+    machine: &Machine,
+    options: PlanOptions,
+    open: Reopen<'_>,
+    name: &str,
+    wanted: &dyn Fn(&Command) -> bool,
+    moves: &mut dyn MoveSink,
+    observer: &mut dyn Observer,
+) -> Result<Estimate, EstimateError> {
     let setup = machine.setup_with(options);
-    let planned = breakdown(&setup, open, name, wanted)?;
+    let planned = breakdown(&setup, open, name, wanted, moves, observer)?;
     let mut free = setup.clone();
     free.planner.kinematic_limits.clear();
     let unlimited = if setup.planner.kinematic_limits.is_empty() {
         planned.clone()
     } else {
-        breakdown(&free, open, name, &|_| false)?
+        breakdown(&free, open, name, &|_| false, &mut (), &mut NoObserver)?
     };
     let mut limits = Vec::new();
     for limit in &setup.planner.kinematic_limits {
         let mut alone = free.clone();
         alone.planner.kinematic_limits = vec![*limit];
-        let time = breakdown(&alone, open, name, &|_| false)?.total;
+        let time = breakdown(&alone, open, name, &|_| false, &mut (), &mut NoObserver)?.total;
         limits.push(LimitCost {
             motor: setup.kinematics.motors()[limit.motor].name.clone(),
             max_velocity: limit.max_velocity,
@@ -115,7 +142,64 @@ pub fn estimate(
             lost: time - unlimited.total,
         });
     }
-    Ok(planned.into_estimate(&unlimited, limits))
+    let klipper_rule = match (
+        setup.kinematics.turning_limits(),
+        machine.config.limits.max_angular_velocity,
+    ) {
+        (Some(kinematics::TurningLimits::Bed), Some(v_rad_max)) => {
+            let mut rule = free.clone();
+            rule.planner.klipper_centre_rule = Some(v_rad_max);
+            let pass = breakdown(&rule, open, name, &|_| false, &mut (), &mut NoObserver)?;
+            Some(pass.total)
+        }
+        _ => None,
+    };
+    let mut estimate = planned.into_estimate(&unlimited, limits);
+    estimate.klipper_rule = klipper_rule;
+    Ok(estimate)
+}
+
+/// Sees nothing (the passes no one watches).
+struct NoObserver;
+
+impl Observer for NoObserver {
+    fn command(&mut self, _command: &Spanned<Command>) {}
+}
+
+/// A watcher's sink, lent for one pass.
+struct Lent<'a>(&'a mut dyn MoveSink);
+
+impl MoveSink for Lent<'_> {
+    fn append(&mut self, queue: Queue, mv: &TrapezoidMove) -> Result<(), SinkError> {
+        self.0.append(queue, mv)
+    }
+    fn origin(&mut self, origin: u64) {
+        self.0.origin(origin);
+    }
+    fn flush(&mut self, print_time: f64) -> Result<(), SinkError> {
+        self.0.flush(print_time)
+    }
+    fn set_position(&mut self, xyz: trapq::Vec3, e: f64) -> Result<(), SinkError> {
+        self.0.set_position(xyz, e)
+    }
+}
+
+/// The estimate's reader and a watcher's, one after the other.
+struct Both<'a, 'w> {
+    reader: &'a mut Markers,
+    wanted: &'a dyn Fn(&Command) -> bool,
+    watcher: &'w mut dyn Observer,
+}
+
+impl Observer for Both<'_, '_> {
+    fn command(&mut self, command: &Spanned<Command>) {
+        self.reader.observe(command, self.wanted);
+        self.watcher.command(command);
+    }
+
+    fn refused(&mut self, command: &Spanned<Command>, at: [f64; 4], reason: &str) {
+        self.watcher.refused(command, at, reason);
+    }
 }
 
 /// Why an estimate could not be made.
@@ -146,6 +230,8 @@ fn breakdown(
     open: Reopen<'_>,
     name: &str,
     wanted: &dyn Fn(&Command) -> bool,
+    moves: &mut dyn MoveSink,
+    watcher: &mut dyn Observer,
 ) -> Result<Breakdown, EstimateError> {
     let input = open().map_err(|source| EstimateError::Read {
         name: name.to_string(),
@@ -153,10 +239,13 @@ fn breakdown(
     })?;
     let queued = Rc::new(RefCell::new(Queued::default()));
     let mut reader = Markers::new(Rc::clone(&queued));
-    let sink = Timeline::new(queued);
-    let (mut sink, summary) = plan_gcode_observed(setup, input, name, sink, |command| {
-        reader.observe(command, wanted);
-    })?;
+    let sink = (Timeline::new(queued), Lent(moves));
+    let mut observer = Both {
+        reader: &mut reader,
+        wanted,
+        watcher,
+    };
+    let ((mut sink, _), summary) = plan_gcode_watched(setup, input, name, sink, &mut observer)?;
     sink.advance(u64::MAX, summary.end_time);
     sink.charge(summary.end_time);
     let mut layers = reader.layers;
@@ -197,6 +286,7 @@ impl Breakdown {
             total: self.total,
             without_motor_limits: unlimited.total,
             klipper_exit_time: self.summary.klipper_exit_time,
+            klipper_rule: None,
             slicer: self.slicer,
             layers: lost(self.layers, &unlimited.layers),
             features: lost(self.features, &unlimited.features),

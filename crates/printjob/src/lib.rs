@@ -14,8 +14,12 @@ mod run;
 
 pub use audit::StepStreamError;
 pub use check::{CheckReport, Problem, Severity, audit_file, check_gcode};
-pub use estimate::{Estimate, EstimateError, LimitCost, Part, Reopen, SlowLine, estimate};
+pub use estimate::{
+    Estimate, EstimateError, LimitCost, Part, Reopen, SlowLine, estimate, estimate_watched,
+};
 pub use machine::{ConfigNote, LoadError, Machine, PlanOptions};
 pub use moves_file::MovesFile;
-pub use plan::{PipelineError, PlanSummary, plan_gcode, plan_gcode_observed};
+pub use plan::{
+    Observer, PipelineError, PlanSummary, plan_gcode, plan_gcode_observed, plan_gcode_watched,
+};
 pub use run::{MotorSummary, RunError, RunOptions, RunSummary, WarningLine, run};

@@ -91,6 +91,24 @@ pub fn plan_gcode<S: MoveSink>(
     plan_gcode_observed(setup, input, source_name, sink, |_| {})
 }
 
+/// What a caller sees of a stream while it is planned, beside the planned moves.
+pub trait Observer {
+    /// Every command (metadata and pass-through commands included), before it is planned.
+    fn command(&mut self, command: &gcode::Spanned<gcode::Command>);
+    /// With `skip_unreachable`: a move the machine refused, the machine at `at` (where it stays), and why.
+    fn refused(&mut self, _command: &gcode::Spanned<gcode::Command>, _at: [f64; 4], _reason: &str) {
+    }
+}
+
+/// A closure as an [`Observer`] of commands.
+struct EachCommand<F>(F);
+
+impl<F: FnMut(&gcode::Spanned<gcode::Command>)> Observer for EachCommand<F> {
+    fn command(&mut self, command: &gcode::Spanned<gcode::Command>) {
+        (self.0)(command);
+    }
+}
+
 /// [`plan_gcode`], showing `observe` every command (metadata and pass-through commands included) before it is
 /// planned: for a breakdown of the planned time by what the file says between its moves.
 pub fn plan_gcode_observed<S: MoveSink>(
@@ -98,13 +116,24 @@ pub fn plan_gcode_observed<S: MoveSink>(
     input: impl BufRead,
     source_name: &str,
     sink: S,
-    mut observe: impl FnMut(&gcode::Spanned<gcode::Command>),
+    observe: impl FnMut(&gcode::Spanned<gcode::Command>),
+) -> Result<(S, PlanSummary), PipelineError> {
+    plan_gcode_watched(setup, input, source_name, sink, &mut EachCommand(observe))
+}
+
+/// [`plan_gcode`] with an [`Observer`]: every command before it is planned, and each refused move.
+pub fn plan_gcode_watched<S: MoveSink>(
+    setup: &MachineSetup,
+    input: impl BufRead,
+    source_name: &str,
+    sink: S,
+    observer: &mut dyn Observer,
 ) -> Result<(S, PlanSummary), PipelineError> {
     let (mut commands, mut planner) = start(setup, input, source_name, sink);
     let mut block = 0u64;
     while let Some(command) = commands.next_command() {
         let command = command?;
-        observe(&command);
+        observer.command(&command);
         // Klipper's batch mode reads its input in 4096-byte blocks and runs its timers between blocks.
         let line_end_block =
             commands.reader().bytes_consumed().saturating_sub(1) / KLIPPER_INPUT_BLOCK;
@@ -116,10 +145,12 @@ pub fn plan_gcode_observed<S: MoveSink>(
             Ok(Some(position)) => commands.interpreter_mut().set_position(position),
             Ok(None) => {}
             Err(e) if setup.planner.skip_unreachable && e.is_unreachable() => {
-                planner.warn(e.span, e.kind.to_string());
+                let reason = e.kind.to_string();
+                planner.warn(e.span, reason.clone());
                 // The machine stays where it was (later relative moves continue from there); the skipped
                 // move's filament is not pushed by the next one.
                 let position = planner.skip(&command);
+                observer.refused(&command, position, &reason);
                 commands.interpreter_mut().set_position(position);
             }
             Err(e) => return Err(e.into()),

@@ -105,11 +105,43 @@ fn demo_machine(example: &Example, out: &Path) -> miette::Result<String> {
     section += &report::run_summary(&summary);
     let figures = maps::map_and_draw(&machine.config.params, 2.0, &dir, "workspace")?;
     section += &report::workspace(&figures);
+    section += &demo_view(&machine, &gcode, &print_path, &dir)?;
     if let Some(target) = example.convert_to {
         section += &demo_conversion(&machine, &gcode, &print_path, &dir, target)?;
     }
     let _ = writeln!(section);
     Ok(section)
+}
+
+/// The test print as `jointspace view` shows it: one HTML page beside it.
+fn demo_view(
+    machine: &printjob::Machine,
+    gcode: &str,
+    print_path: &Path,
+    dir: &Path,
+) -> miette::Result<String> {
+    let name = print_path.display().to_string();
+    let open =
+        || -> std::io::Result<Box<dyn std::io::BufRead + '_>> { Ok(Box::new(gcode.as_bytes())) };
+    let options = printjob::PlanOptions::default();
+    let (estimate, page) = view::plan(machine, options, &open, &name, view::Budget::DEFAULT)
+        .map_err(|e| miette::miette!("{name}: {e}"))?;
+    let out = dir.join("test-print.html");
+    let meta = view::PageMeta {
+        file: name,
+        config: machine.source.clone(),
+    };
+    write_atomically(&out, |w| {
+        view::write_page(w, &estimate, &page, &meta)
+            .map_err(|e| outfile::write_error(&out, e).into())
+    })
+    .map_err(|e: anyhow::Error| super::plain(e))?;
+    let kept: usize = page.collected.layers.iter().map(|l| l.segments.len()).sum();
+    Ok(format!(
+        "view of the test print (open in a browser): {} ({kept} segments, {} layers)\n",
+        out.display(),
+        page.collected.layers.len()
+    ))
 }
 
 /// Convert the test print for firmware without the machine's kinematics (the job `convert` assembles), and verify

@@ -91,6 +91,12 @@ fn text(e: &Estimate, name: &str, layers: usize) -> String {
             );
         }
     }
+    if let Some(rule) = e.klipper_rule {
+        out += &format!(
+            "  with Klipper's own rule instead (whole moves slowed near the centre, centre_slowdown: klipper) {}\n",
+            hms(rule)
+        );
+    }
     out += &table("feature", &e.features, e.total, usize::MAX);
     out += &table("layer", &e.layers, e.total, layers);
     if e.slowed_total > 0 {

@@ -8,6 +8,7 @@ pub mod post_process;
 pub mod run;
 pub mod simulate;
 pub mod stats;
+pub mod view;
 pub mod workspace;
 
 /// Convert an `anyhow` error into a report (plain message, with its causes).

@@ -218,6 +218,12 @@ fn estimate_costs_each_motor_limit() {
         "one limit: it alone costs the difference"
     );
     assert!(json["slowed_total"].as_u64().expect("a number") > 0);
+    // Klipper's own rule (whole moves slowed by the bed's speed at their closest approach): 141.1 s in Klipper with
+    // the plug-in's `centre_slowdown: klipper` on this case.
+    let rule = json["klipper_rule"]
+        .as_f64()
+        .expect("Klipper's rule's time");
+    assert!((rule - 141.1).abs() < 0.05, "{rule}");
 }
 
 /// What post-process must refuse, leaving the file as it was and nothing beside it.

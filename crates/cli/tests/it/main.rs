@@ -19,3 +19,4 @@ mod limits;
 mod output;
 mod simulate;
 mod structure;
+mod view;

@@ -26,7 +26,7 @@ struct Example {
     convert_to: Option<convert::Target>,
 }
 
-const EXAMPLES: [Example; 3] = [
+const EXAMPLES: [Example; 4] = [
     Example {
         name: "polar",
         config: include_str!("../../../../examples/machines/polar.cfg"),
@@ -39,6 +39,13 @@ const EXAMPLES: [Example; 3] = [
         config: include_str!("../../../../examples/machines/scara.cfg"),
         print_centre: [0.0, 130.0],
         print_size: 25.0,
+        convert_to: Some(convert::Target::Joints),
+    },
+    Example {
+        name: "fivebar",
+        config: include_str!("../../../../examples/machines/fivebar.cfg"),
+        print_centre: [0.0, 20.0],
+        print_size: 40.0,
         convert_to: Some(convert::Target::Joints),
     },
     Example {

@@ -213,3 +213,54 @@ mod tests {
         assert!(matches!(err, Err(ReachError::JointLimit { max, .. }) if max == 2.0));
     }
 }
+
+/// Where along a segment (`t ≤ to` or `t ≥ from`) an arm's singular band is allowed: next to an end that rests in
+/// it (from rest the joints move at finite speed however close the pose is to singular).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Exempt {
+    pub(crate) to: f64,
+    pub(crate) from: f64,
+}
+
+impl Exempt {
+    pub(crate) const NONE: Exempt = Exempt {
+        to: -1.0,
+        from: 2.0,
+    };
+
+    pub(crate) fn covers(&self, t: f64) -> bool {
+        t <= self.to || t >= self.from
+    }
+
+    /// The stretches next to each end that lies in a band (`in_band(t)`), where the band is left monotonically on
+    /// either side of `t_near` (the closest approach to the arm's axis: the distance from it is monotone there),
+    /// each found to [`SEGMENT_T_TOLERANCE`] by bisection.
+    pub(crate) fn band_ends(in_band: impl Fn(f64) -> bool, t_near: f64) -> Exempt {
+        let leaves = |mut inside: f64, mut outside: f64| {
+            if in_band(outside) {
+                return outside;
+            }
+            while (outside - inside).abs() > SEGMENT_T_TOLERANCE {
+                let mid = 0.5 * (inside + outside);
+                if in_band(mid) {
+                    inside = mid;
+                } else {
+                    outside = mid;
+                }
+            }
+            inside
+        };
+        Exempt {
+            to: if in_band(0.0) {
+                leaves(0.0, t_near)
+            } else {
+                -1.0
+            },
+            from: if in_band(1.0) {
+                leaves(1.0, t_near)
+            } else {
+                2.0
+            },
+        }
+    }
+}

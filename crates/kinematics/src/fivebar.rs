@@ -26,8 +26,9 @@ use std::f64::consts::{PI, TAU};
 
 use crate::angle::unwrap_near;
 use crate::common::{
-    SEGMENT_T_TOLERANCE, check_axis_limits, check_stepper_limits, closest_approach, ensure_finite,
-    ensure_finite_point, ensure_non_negative, ensure_positive, first_failure, lerp, motor_from,
+    Exempt, SEGMENT_T_TOLERANCE, check_axis_limits, check_stepper_limits, closest_approach,
+    ensure_finite, ensure_finite_point, ensure_non_negative, ensure_positive, first_failure, lerp,
+    motor_from,
 };
 use crate::{
     FivebarArm, FivebarParams, Kinematics, Motor, MotorMap, MotorUnit, ParamError, ReachError,
@@ -346,33 +347,7 @@ impl Fivebar {
             return Exempt::NONE;
         }
         let (t_near, _) = closest_approach(a, b, self.arm(side).base);
-        let in_band = |t: f64| self.in_arm_band(side, lerp(a, b, t));
-        let leaves = |mut inside: f64, mut outside: f64| {
-            if in_band(outside) {
-                return outside;
-            }
-            while (outside - inside).abs() > SEGMENT_T_TOLERANCE {
-                let mid = 0.5 * (inside + outside);
-                if in_band(mid) {
-                    inside = mid;
-                } else {
-                    outside = mid;
-                }
-            }
-            inside
-        };
-        Exempt {
-            to: if in_band(0.0) {
-                leaves(0.0, t_near)
-            } else {
-                -1.0
-            },
-            from: if in_band(1.0) {
-                leaves(1.0, t_near)
-            } else {
-                2.0
-            },
-        }
+        Exempt::band_ends(|t| self.in_arm_band(side, lerp(a, b, t)), t_near)
     }
 
     /// The first failure of the distance-only checks of each side, in closed form: the distance from a base is
@@ -474,24 +449,6 @@ fn earliest(a: Option<SegmentError>, b: Option<SegmentError>) -> Option<SegmentE
     match (a, b) {
         (Some(a), Some(b)) => Some(if b.t < a.t { b } else { a }),
         (a, b) => a.or(b),
-    }
-}
-
-/// Where along a segment (`t ≤ to` or `t ≥ from`) a side's serial band is allowed.
-#[derive(Debug, Clone, Copy)]
-struct Exempt {
-    to: f64,
-    from: f64,
-}
-
-impl Exempt {
-    const NONE: Exempt = Exempt {
-        to: -1.0,
-        from: 2.0,
-    };
-
-    fn covers(&self, t: f64) -> bool {
-        t <= self.to || t >= self.from
     }
 }
 

@@ -17,9 +17,9 @@ use std::f64::consts::{PI, TAU};
 
 use crate::angle::unwrap_near;
 use crate::common::{
-    SEGMENT_T_TOLERANCE, check_axis_limits, check_range, check_stepper_limits, closest_approach,
-    ensure_finite, ensure_finite_point, ensure_non_negative, ensure_positive, ensure_range,
-    first_failure, lerp, motor_from,
+    Exempt, SEGMENT_T_TOLERANCE, check_axis_limits, check_range, check_stepper_limits,
+    closest_approach, ensure_finite, ensure_finite_point, ensure_non_negative, ensure_positive,
+    ensure_range, first_failure, lerp, motor_from,
 };
 use crate::{
     ElbowBranch, Kinematics, Motor, MotorMap, MotorUnit, ParamError, ReachError, ScaraFrame,
@@ -396,51 +396,7 @@ impl Scara {
     /// rest of the segment must keep the margin. The distance from the shoulder is monotone on either side of
     /// the closest approach `t_near`, so each stretch ends where the segment leaves the band, found by bisection.
     fn singular_ends(&self, a: Vec3, b: Vec3, t_near: f64) -> Exempt {
-        let in_band = |t: f64| self.in_singular_band(lerp(a, b, t));
-        let leaves = |mut inside: f64, mut outside: f64| {
-            if in_band(outside) {
-                return outside;
-            }
-            while (outside - inside).abs() > SEGMENT_T_TOLERANCE {
-                let mid = 0.5 * (inside + outside);
-                if in_band(mid) {
-                    inside = mid;
-                } else {
-                    outside = mid;
-                }
-            }
-            inside
-        };
-        Exempt {
-            to: if in_band(0.0) {
-                leaves(0.0, t_near)
-            } else {
-                -1.0
-            },
-            from: if in_band(1.0) {
-                leaves(1.0, t_near)
-            } else {
-                2.0
-            },
-        }
-    }
-}
-
-/// Where along a segment (`t < to` or `t > from`) the singularity margin does not apply.
-#[derive(Debug, Clone, Copy)]
-struct Exempt {
-    to: f64,
-    from: f64,
-}
-
-impl Exempt {
-    const NONE: Exempt = Exempt {
-        to: -1.0,
-        from: 2.0,
-    };
-
-    fn covers(&self, t: f64) -> bool {
-        t <= self.to || t >= self.from
+        Exempt::band_ends(|t| self.in_singular_band(lerp(a, b, t)), t_near)
     }
 }
 

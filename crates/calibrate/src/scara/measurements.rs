@@ -39,12 +39,7 @@ pub struct MeasurementFile {
 /// `frame,<standard|xscara>` line comes first, then the header `motor_a_deg,motor_b_deg,x_mm,y_mm`, then one pose
 /// per line. Errors carry `file:line:column` of the offending field.
 pub fn parse_measurement_file(text: &str, file: &str) -> Result<MeasurementFile, ScaraError> {
-    let located = |e: crate::csv::CsvError| ScaraError::Parse {
-        file: file.to_string(),
-        line: e.line,
-        column: e.column,
-        message: e.message,
-    };
+    let located = located_in(file);
     let (frame, table) = frame_line(text).map_err(located)?;
     let mut rows = Vec::new();
     for row in crate::csv::data_rows(&table, &CSV_HEADER).map_err(located)? {
@@ -59,6 +54,16 @@ pub fn parse_measurement_file(text: &str, file: &str) -> Result<MeasurementFile,
     Ok(MeasurementFile { frame, rows })
 }
 
+/// A CSV error of `file` as the located parse error both readers give.
+fn located_in(file: &str) -> impl Fn(crate::csv::CsvError) -> ScaraError + Copy + '_ {
+    move |e| ScaraError::Parse {
+        file: file.to_string(),
+        line: e.line,
+        column: e.column,
+        message: e.message,
+    }
+}
+
 /// A measurements file read for its poses alone (the template as written, `x_mm` and `y_mm` empty or not).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseFile {
@@ -69,12 +74,7 @@ pub struct PoseFile {
 
 /// The poses of a measurements file or template, errors located as [`parse_measurement_file`]'s.
 pub fn parse_pose_file(text: &str, file: &str) -> Result<PoseFile, ScaraError> {
-    let located = |e: crate::csv::CsvError| ScaraError::Parse {
-        file: file.to_string(),
-        line: e.line,
-        column: e.column,
-        message: e.message,
-    };
+    let located = located_in(file);
     let (frame, table) = frame_line(text).map_err(located)?;
     let mut poses = Vec::new();
     for row in crate::csv::data_rows(&table, &CSV_HEADER).map_err(located)? {

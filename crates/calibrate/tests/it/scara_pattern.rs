@@ -108,9 +108,18 @@ pub(crate) fn config(arm: &Arm) -> ScaraParams {
 /// A random arm as built (lengths 90–150 mm, ECR 1–4, shoulder within ±5 mm, zeros within ±3°) and the config its
 /// owner believes (within ±1 mm, ±0.5° and ±0.5 % of it).
 fn random_arm(rng: &mut StdRng, x_scara: bool) -> (Arm, Arm) {
+    random_arm_with_links(rng, x_scara, 90.0..150.0)
+}
+
+/// [`random_arm`] with both link lengths drawn from `links` (mm).
+pub(crate) fn random_arm_with_links(
+    rng: &mut StdRng,
+    x_scara: bool,
+    links: std::ops::Range<f64>,
+) -> (Arm, Arm) {
     let truth = Arm {
-        l1: rng.random_range(90.0..150.0),
-        l2: rng.random_range(90.0..150.0),
+        l1: rng.random_range(links.clone()),
+        l2: rng.random_range(links),
         shoulder: [rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0)],
         zero_a: rng.random_range(-3.0f64..3.0).to_radians(),
         zero_b: rng.random_range(-3.0f64..3.0).to_radians(),

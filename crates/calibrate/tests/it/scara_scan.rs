@@ -12,31 +12,12 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use crate::scan_render::{Rendered, Scanner, render};
-use crate::scara_pattern::{Arm, limited_machine};
+use crate::scara_pattern::{Arm, limited_machine, random_arm_with_links};
 
 /// A random arm as built, FEKT-like or X-SCARA-like (lengths 90–115 mm, coupling 1/4–1, shoulder within ±5 mm,
 /// zeros within ±3°), and the config its owner believes (±1 mm, ±0.5°, ±0.5 %).
 fn random_arm(rng: &mut StdRng, x_scara: bool) -> (Arm, Arm) {
-    let truth = Arm {
-        l1: rng.random_range(90.0..115.0),
-        l2: rng.random_range(90.0..115.0),
-        shoulder: [rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0)],
-        zero_a: rng.random_range(-3.0f64..3.0).to_radians(),
-        zero_b: rng.random_range(-3.0f64..3.0).to_radians(),
-        coupling: 1.0 / rng.random_range(1.0..4.0),
-        from_y: x_scara,
-    };
-    let mut mm = || rng.random_range(-1.0..1.0);
-    let believed = Arm {
-        l1: truth.l1 + mm(),
-        l2: truth.l2 + mm(),
-        shoulder: [truth.shoulder[0] + mm(), truth.shoulder[1] + mm()],
-        zero_a: truth.zero_a + 0.5 * mm().to_radians(),
-        zero_b: truth.zero_b + 0.5 * mm().to_radians(),
-        coupling: truth.coupling * (1.0 + 0.005 * mm()),
-        from_y: x_scara,
-    };
-    (truth, believed)
+    random_arm_with_links(rng, x_scara, 90.0..115.0)
 }
 
 /// The scanner of arm `k`: 600 dpi, a few degrees of rotation, every third face down, every fourth in colour,

@@ -1,7 +1,7 @@
 //! Workspace maps: where a machine reaches and how fine its motion is across the bed, as numbers and pictures.
 
 use kinematics::workspace::{self, ResolutionKind, WorkspaceMap};
-use plot::workspace::{Outline, ResolutionLayer, WorkspaceData};
+use plot::workspace::{CurveData, Outline, ResolutionLayer, WorkspaceData};
 use serde::Serialize;
 use std::path::Path;
 
@@ -36,7 +36,16 @@ pub struct WorkspaceFigures {
     pub reachable_area_mm2: f64,
     /// Per motor, then for the machine's worst direction.
     pub resolution: Vec<ResolutionRange>,
+    /// The special poses drawn on the maps (a five-bar's arms straight or folded, its distal links in line).
+    pub singular_curves: Vec<CurveLength>,
     pub pictures: Vec<String>,
+}
+
+/// How much of one kind of special pose lies in the mapped area.
+#[derive(Debug, Clone, Serialize)]
+pub struct CurveLength {
+    pub label: String,
+    pub length_mm: f64,
 }
 
 /// Map the workspace, write the pictures into `dir` as `<stem>-*.png/svg`, return the numbers.
@@ -88,6 +97,14 @@ pub fn map_and_draw(
         machine: map.machine.to_string(),
         reachable_area_mm2: map.summary.reachable_area_mm2,
         resolution,
+        singular_curves: map
+            .curves
+            .iter()
+            .map(|c| CurveLength {
+                label: c.label.to_string(),
+                length_mm: c.length(),
+            })
+            .collect(),
         pictures: written.iter().map(|p| p.display().to_string()).collect(),
     })
 }
@@ -140,6 +157,14 @@ fn workspace_data(map: &WorkspaceMap) -> WorkspaceData {
         reach,
         resolutions,
         notes,
+        curves: map
+            .curves
+            .iter()
+            .map(|c| CurveData {
+                label: c.label.to_string(),
+                pieces: c.pieces.clone(),
+            })
+            .collect(),
     }
 }
 

@@ -95,6 +95,12 @@ pub fn workspace(f: &WorkspaceFigures) -> String {
     }
     out += "  (a motor's smallest travel is where it steps for the least nozzle motion, where it turns fastest;\n   \
             the machine positions finest where the worst direction's travel is smallest)\n";
+    for c in &f.singular_curves {
+        out += &format!(
+            "  singular curve drawn: {} ({:.0} mm of it in the area)\n",
+            c.label, c.length_mm
+        );
+    }
     out += &format!(
         "  {} pictures written (reach, per-motor and worst-direction maps)\n",
         f.pictures.len()

@@ -22,6 +22,8 @@
 //! links turning the other way); the soft limits (margin, motor limits, Z) are applied by
 //! [`Kinematics::check_point`] / [`Kinematics::check_segment`].
 
+mod curves;
+
 use std::f64::consts::{PI, TAU};
 
 use crate::angle::unwrap_near;
@@ -587,6 +589,14 @@ impl Kinematics for Fivebar {
             (d - inner).min(outer - d)
         };
         Some(margin(LEFT).min(margin(RIGHT)))
+    }
+
+    fn singular_curves(
+        &self,
+        bounds: &crate::workspace::Bounds,
+        spacing: f64,
+    ) -> Vec<crate::curves::SingularCurve> {
+        curves::singular_curves(self, bounds, spacing)
     }
 
     fn refusal_in_owner_terms(&self, a: Vec3, b: Vec3) -> Option<String> {

@@ -7,6 +7,7 @@
 mod angle;
 pub mod cartesian;
 mod common;
+pub mod curves;
 pub mod fivebar;
 pub mod params;
 pub mod polar;
@@ -309,6 +310,17 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
     /// a host's own arithmetic (the Klipper plug-in's).
     fn solver_geometry(&self) -> SolverGeometry {
         SolverGeometry::Linear
+    }
+
+    /// Where the machine's special poses lie within `bounds`, for drawing on a map (`spacing`: the finest detail
+    /// drawn, mm). Empty for a machine without singular curves in its bed (Cartesian; a polar machine's centre is a
+    /// point, a SCARA's straight and folded arm are its reach map's edges).
+    fn singular_curves(
+        &self,
+        _bounds: &workspace::Bounds,
+        _spacing: f64,
+    ) -> Vec<curves::SingularCurve> {
+        Vec::new()
     }
 
     /// The machine itself, for a tool that acts on one kind's own parameters (the SCARA calibration pattern):

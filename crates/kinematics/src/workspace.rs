@@ -7,6 +7,7 @@
 //! travel for a unit change in step space over all directions: `1 / σ_min(S)`, where `S` is the 2×2 XY
 //! Jacobian with each row divided by its motor's step distance (rows in steps per mm).
 
+use crate::curves::SingularCurve;
 use crate::{Kinematics, MachineParams, ParamError, ReachError};
 
 /// Rectangular area of the map, mm.
@@ -70,6 +71,8 @@ pub struct WorkspaceMap {
     pub motor_names: [String; 2],
     pub cells: Vec<Result<CellResolution, ReachError>>,
     pub summary: Summary,
+    /// Where the machine's special poses lie in the area, traced at half a cell (drawn over the cells).
+    pub curves: Vec<SingularCurve>,
 }
 
 /// Which resolution of a cell.
@@ -279,6 +282,7 @@ pub fn map(
         }
     }
     let summary = summarise(&cells, &bounds, cell_mm, nx);
+    let curves = kin.singular_curves(&bounds, 0.5 * cell_mm);
     Ok(WorkspaceMap {
         machine: kin.name(),
         bounds,
@@ -289,6 +293,7 @@ pub fn map(
         motor_names: [motors[0].name.clone(), motors[1].name.clone()],
         cells,
         summary,
+        curves,
     })
 }
 

@@ -42,6 +42,60 @@ pub struct WorkspaceData {
     pub resolutions: Vec<ResolutionLayer>,
     /// Summary lines printed under the titles (area, extremes).
     pub notes: Vec<String>,
+    /// The machine's singular curves, drawn over every map and named in the reach map's legend.
+    pub curves: Vec<CurveData>,
+}
+
+/// One kind of special pose: its name and polylines (mm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CurveData {
+    pub label: String,
+    pub pieces: Vec<Vec<[f64; 2]>>,
+}
+
+/// Dark, saturated: they stay visible over the reach categories and the heat maps alike.
+/// In order: an arm straight, an arm folded, links in line, anything else.
+const CURVE_PALETTE: [Rgb; 4] = [
+    Rgb(20, 20, 140),
+    Rgb(0, 110, 150),
+    Rgb(190, 0, 110),
+    Rgb(0, 90, 40),
+];
+
+/// The curves' colour: by kind (left and right of a kind share one).
+fn curve_colour(label: &str) -> Rgb {
+    let kind = ["straight", "folded", "in line"]
+        .iter()
+        .position(|k| label.contains(k))
+        .unwrap_or(3);
+    CURVE_PALETTE[kind]
+}
+
+fn curve_layers(data: &WorkspaceData) -> impl Iterator<Item = Layer> + '_ {
+    data.curves.iter().flat_map(|c| {
+        let colour = curve_colour(&c.label);
+        c.pieces.iter().map(move |piece| Layer::Polyline {
+            points: piece.clone(),
+            colour,
+            width: 2.0,
+        })
+    })
+}
+
+/// Legend entries of the curves, one per colour (`left/right arm straight` read as `arm straight`).
+fn curve_entries(data: &WorkspaceData) -> Vec<(String, Rgb)> {
+    let mut entries: Vec<(String, Rgb)> = Vec::new();
+    for c in &data.curves {
+        let colour = curve_colour(&c.label);
+        let name = c
+            .label
+            .trim_start_matches("left ")
+            .trim_start_matches("right ");
+        if !entries.iter().any(|(_, rgb)| *rgb == colour) {
+            entries.push((format!("singular: {name}"), colour));
+        }
+    }
+    entries
 }
 
 const REACH_PALETTE: [Rgb; 8] = [
@@ -92,7 +146,7 @@ pub fn reach_figure(data: &WorkspaceData) -> Result<Figure, PlotError> {
         .map(|i| REACH_PALETTE[i % REACH_PALETTE.len()])
         .collect();
     let present = |i: usize| data.reach.contains(&i);
-    let entries = data
+    let mut entries: Vec<(String, Rgb)> = data
         .reach_labels
         .iter()
         .zip(&palette)
@@ -100,10 +154,12 @@ pub fn reach_figure(data: &WorkspaceData) -> Result<Figure, PlotError> {
         .filter(|(i, _)| present(*i))
         .map(|(_, (label, colour))| (label.clone(), *colour))
         .collect();
+    entries.extend(curve_entries(data));
     let mut fig = Figure::new(format!("{} workspace: reachable area", data.machine));
     fig.notes = data.notes.clone();
     fig.legend = Some(Legend { entries });
     fig.layers.push(Layer::Categories { grid, palette });
+    fig.layers.extend(curve_layers(data));
     fig.layers.push(outline_layer(data.outline));
     Ok(fig)
 }
@@ -131,6 +187,7 @@ pub fn resolution_figure(
     }];
     fig.colour_bar = Some(scale.clone());
     fig.layers.push(Layer::Heatmap { grid, scale });
+    fig.layers.extend(curve_layers(data));
     fig.layers.push(outline_layer(data.outline));
     Ok(fig)
 }

@@ -149,3 +149,76 @@ fn convert_to_joints_on_the_fivebar_verifies() {
     assert!(out.status.success(), "{stdout}\n{stderr}");
     assert!(stdout.contains("max deviation 0.00"), "{stdout}");
 }
+
+/// `workspace` on the example names the five kinds of special pose with the length of each in the area, and the maps
+/// it wrote draw them: the SVGs hold a polyline in each kind's colour, the reach PNG has pixels of the parallel
+/// curve's colour, and the legend names them.
+#[test]
+fn the_workspace_maps_draw_the_singular_curves() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = example_machine("fivebar");
+    let out = jointspace(
+        dir.path(),
+        &[
+            "workspace",
+            "--json",
+            "-c",
+            config.to_str().expect("utf-8"),
+            "-o",
+            "maps",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let figures: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let curves = figures["singular_curves"].as_array().expect("curves");
+    let labels: Vec<&str> = curves.iter().filter_map(|c| c["label"].as_str()).collect();
+    for side in ["left", "right"] {
+        for pose in ["straight", "folded"] {
+            assert!(
+                labels.contains(&format!("{side} arm {pose}").as_str()),
+                "{labels:?}"
+            );
+        }
+    }
+    assert!(labels.contains(&"distal links in line"), "{labels:?}");
+    // The example's folded circles (radius 50 mm about each base) lie whole in the area but for where they meet the
+    // other side's: each drawn piece is shorter than the circle.
+    for c in curves {
+        let length = c["length_mm"].as_f64().expect("length");
+        assert!(length > 50.0, "{c}");
+        if c["label"].as_str().is_some_and(|l| l.ends_with("folded")) {
+            assert!(length < std::f64::consts::TAU * 50.0, "{c}");
+        }
+    }
+    let maps = dir.path().join("maps");
+    for name in ["reach", "machine", "stepper_left", "stepper_right"] {
+        let svg = std::fs::read_to_string(maps.join(format!("workspace-{name}.svg"))).expect("svg");
+        for colour in ["#14148c", "#006e96", "#be006e"] {
+            assert!(
+                svg.contains(&format!("stroke=\"{colour}\"")),
+                "{name}: no {colour}"
+            );
+        }
+    }
+    let reach = std::fs::read_to_string(maps.join("workspace-reach.svg")).expect("svg");
+    assert!(reach.contains("singular: distal links in line"));
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(maps.join("workspace-reach.png")).expect("png"),
+    ));
+    let mut reader = decoder.read_info().expect("png header");
+    let mut pixels = vec![0; reader.output_buffer_size().expect("size")];
+    let info = reader.next_frame(&mut pixels).expect("png data");
+    let step = info.color_type.samples();
+    let magenta = pixels[..info.buffer_size()]
+        .chunks(step)
+        .filter(|p| p[..3] == [190, 0, 110])
+        .count();
+    assert!(
+        magenta > 100,
+        "{magenta} pixels of the parallel curve's colour"
+    );
+}

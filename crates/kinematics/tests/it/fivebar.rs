@@ -10,14 +10,14 @@ use kinematics::workspace::area_for;
 use kinematics::{FivebarArm, FivebarParams, Kinematics, MachineParams, ReachError, Turn, Vec3};
 use proptest::prelude::*;
 
-const MODES: [(Turn, Turn); 4] = [
+pub(crate) const MODES: [(Turn, Turn); 4] = [
     (Turn::Ccw, Turn::Ccw),
     (Turn::Cw, Turn::Ccw),
     (Turn::Ccw, Turn::Cw),
     (Turn::Cw, Turn::Cw),
 ];
 
-fn machine(left: Turn, right: Turn, distal: Turn, margin: f64) -> Fivebar {
+pub(crate) fn machine(left: Turn, right: Turn, distal: Turn, margin: f64) -> Fivebar {
     let mut p = FivebarParams::example();
     (p.left.turn, p.right.turn, p.distal_turn) = (left, right, distal);
     p.singularity_margin = margin;
@@ -41,11 +41,11 @@ fn circles(c0: [f64; 2], r0: f64, c1: [f64; 2], r1: f64) -> Option<[[f64; 2]; 2]
 }
 
 /// Sign of the turn `a → b → c` (counter-clockwise positive).
-fn turn(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+pub(crate) fn turn(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
 }
 
-fn sign(t: Turn) -> f64 {
+pub(crate) fn sign(t: Turn) -> f64 {
     if t == Turn::Ccw { 1.0 } else { -1.0 }
 }
 
@@ -57,7 +57,10 @@ fn independent(p: &FivebarParams, n: [f64; 2]) -> Option<([f64; 2], [[f64; 2]; 2
 }
 
 /// The elbows alone, whichever way the distal links turn.
-fn either_distal_turn(p: &FivebarParams, n: [f64; 2]) -> Option<([f64; 2], [[f64; 2]; 2])> {
+pub(crate) fn either_distal_turn(
+    p: &FivebarParams,
+    n: [f64; 2],
+) -> Option<([f64; 2], [[f64; 2]; 2])> {
     let elbow = |arm: &FivebarArm| {
         let both = circles(arm.base, arm.proximal, n, arm.distal)?;
         both.into_iter()

@@ -3,6 +3,7 @@
 
 mod closed_form;
 mod fivebar;
+mod fivebar_curves;
 mod golden;
 mod machines;
 mod roundtrip;

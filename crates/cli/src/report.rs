@@ -282,3 +282,86 @@ pub fn scara_fit(fit: &Identification, measurements: usize) -> String {
     }
     text
 }
+
+/// What a check found the print asks of the machine: each limited motor's travel and the closest the nozzle comes to
+/// each special pose, with the lines (nothing for a print that plans no move).
+pub fn envelope(e: &printjob::Envelope) -> String {
+    let mut out = String::new();
+    if !e.motors.is_empty() {
+        out += &format!(
+            "  motor travel (the planned moves sampled every {} mm):\n",
+            printjob::SAMPLE_MM
+        );
+    }
+    for m in &e.motors {
+        let (min, max) = (
+            in_config_units(m.unit, m.min),
+            in_config_units(m.unit, m.max),
+        );
+        let unit = config_unit(m.unit);
+        out += &format!(
+            "    {:<16} {min:>9.3} {unit} (line {}) … {max:.3} {unit} (line {})\n",
+            m.name, m.min_line, m.max_line
+        );
+    }
+    for c in &e.closest {
+        let verdict = if c.value < c.margin {
+            "inside the margin: only where a move starts or ends at rest"
+        } else {
+            "clear of the margin"
+        };
+        out += &format!(
+            "  closest to {}: |sin| {:.3} at ({:.1}, {:.1}), line {} (margin {}; {verdict})\n",
+            c.label, c.value, c.at[0], c.at[1], c.line, c.margin
+        );
+    }
+    out
+}
+
+/// Degrees for a turning motor, as printer.cfg states its limits; mm otherwise.
+fn in_config_units(unit: kinematics::MotorUnit, value: f64) -> f64 {
+    match unit {
+        kinematics::MotorUnit::Rad => value.to_degrees(),
+        kinematics::MotorUnit::Mm => value,
+    }
+}
+
+fn config_unit(unit: kinematics::MotorUnit) -> &'static str {
+    match unit {
+        kinematics::MotorUnit::Rad => "°",
+        kinematics::MotorUnit::Mm => "mm",
+    }
+}
+
+/// [`envelope`]'s motor travel for `--json` (degrees for turning motors, as printer.cfg states their limits).
+pub fn motor_travel_json(e: &printjob::Envelope) -> serde_json::Value {
+    e.motors
+        .iter()
+        .map(|m| {
+            serde_json::json!({
+                "motor": m.name,
+                "unit": if m.unit == kinematics::MotorUnit::Rad { "deg" } else { "mm" },
+                "min": in_config_units(m.unit, m.min),
+                "min_line": m.min_line,
+                "max": in_config_units(m.unit, m.max),
+                "max_line": m.max_line,
+            })
+        })
+        .collect()
+}
+
+/// [`envelope`]'s closest approaches for `--json`.
+pub fn closest_json(e: &printjob::Envelope) -> serde_json::Value {
+    e.closest
+        .iter()
+        .map(|c| {
+            serde_json::json!({
+                "pose": c.label,
+                "sin": c.value,
+                "margin": c.margin,
+                "line": c.line,
+                "at": c.at,
+            })
+        })
+        .collect()
+}

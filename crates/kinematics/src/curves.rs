@@ -1,5 +1,6 @@
 //! Singular curves for drawing: where a machine's special poses lie on the bed, as polylines a map draws over its
-//! cells. A machine gives them through [`crate::Kinematics::singular_curves`]; the two shapes they take are here:
+//! cells ([`crate::workspace::SingularCurve`]). A machine gives them through [`crate::Kinematics::singular_curves`];
+//! the two shapes they take are here:
 //! a circle (a side stretched straight or folded lies at a fixed distance from its joint), kept where the pose
 //! exists, and the boundary between two regions (the five-bar's distal links pass through in line exactly where
 //! the configured assembly stops existing), traced by marching squares with every crossing found by bisection.
@@ -7,26 +8,8 @@
 use std::collections::HashMap;
 
 use crate::workspace::Bounds;
-
-/// One kind of special pose and where it lies (several pieces where it leaves the area or the reach).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SingularCurve {
-    /// What the machine does there, e.g. `left arm straight`, `distal links in line`.
-    pub label: &'static str,
-    /// Polylines, bed coordinates (mm).
-    pub pieces: Vec<Vec<[f64; 2]>>,
-}
-
-impl SingularCurve {
-    /// Total length of the pieces (mm).
-    pub fn length(&self) -> f64 {
-        self.pieces
-            .iter()
-            .flat_map(|piece| piece.windows(2))
-            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-            .sum()
-    }
-}
+#[cfg(test)]
+use crate::workspace::SingularCurve;
 
 /// A crossing is located to this distance along its grid edge (mm).
 pub const CROSSING_TOLERANCE: f64 = 1e-9;

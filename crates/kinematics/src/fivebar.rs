@@ -22,7 +22,7 @@
 //! links turning the other way); the soft limits (margin, motor limits, Z) are applied by
 //! [`Kinematics::check_point`] / [`Kinematics::check_segment`].
 
-mod curves;
+mod special_poses;
 
 use std::f64::consts::{PI, TAU};
 
@@ -595,8 +595,12 @@ impl Kinematics for Fivebar {
         &self,
         bounds: &crate::workspace::Bounds,
         spacing: f64,
-    ) -> Vec<crate::curves::SingularCurve> {
-        curves::singular_curves(self, bounds, spacing)
+    ) -> Vec<crate::workspace::SingularCurve> {
+        special_poses::singular_curves(self, bounds, spacing)
+    }
+
+    fn clearances(&self, p: Vec3, out: &mut Vec<crate::Clearance>) {
+        special_poses::clearances(self, p, out);
     }
 
     fn refusal_in_owner_terms(&self, a: Vec3, b: Vec3) -> Option<String> {

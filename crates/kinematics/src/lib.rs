@@ -219,6 +219,17 @@ pub struct SegmentError {
     pub reason: ReachError,
 }
 
+/// How far a pose is from one of the machine's special poses, in the measure its `singularity_margin` states (|sin|
+/// of the angle whose zero is the special pose).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Clearance {
+    /// The special pose, e.g. `arm straight or folded`, `distal links in line`.
+    pub label: &'static str,
+    pub value: f64,
+    /// The smallest value a path keeps between its ends (the configured margin).
+    pub margin: f64,
+}
+
 /// A machine's geometry for solvers that follow one motor (see [`Kinematics::solver_geometry`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SolverGeometry {
@@ -312,6 +323,10 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
         SolverGeometry::Linear
     }
 
+    /// How far the pose at `p` is from each of the machine's special poses (appended to `out`; nothing for a
+    /// machine without any, or where `p` has no pose): what `check` reports as the closest a print comes to them.
+    fn clearances(&self, _p: Vec3, _out: &mut Vec<Clearance>) {}
+
     /// Where the machine's special poses lie within `bounds`, for drawing on a map (`spacing`: the finest detail
     /// drawn, mm). Empty for a machine without singular curves in its bed (Cartesian; a polar machine's centre is a
     /// point, a SCARA's straight and folded arm are its reach map's edges).
@@ -319,7 +334,7 @@ pub trait Kinematics: Send + Sync + std::fmt::Debug {
         &self,
         _bounds: &workspace::Bounds,
         _spacing: f64,
-    ) -> Vec<curves::SingularCurve> {
+    ) -> Vec<workspace::SingularCurve> {
         Vec::new()
     }
 

@@ -695,6 +695,16 @@ impl Kinematics for Scara {
         self.in_singular_band(p)
     }
 
+    fn clearances(&self, p: Vec3, out: &mut Vec<crate::Clearance>) {
+        if let Ok(j) = self.joints(p[0], p[1]) {
+            out.push(crate::Clearance {
+                label: "arm straight or folded",
+                value: j.q2.sin().abs(),
+                margin: self.params.singularity_margin,
+            });
+        }
+    }
+
     fn reach_margin(&self, p: Vec3) -> Option<f64> {
         let [sx, sy] = self.shoulder();
         let rho = (p[0] - sx).hypot(p[1] - sy);

@@ -7,7 +7,6 @@
 //! travel for a unit change in step space over all directions: `1 / σ_min(S)`, where `S` is the 2×2 XY
 //! Jacobian with each row divided by its motor's step distance (rows in steps per mm).
 
-use crate::curves::SingularCurve;
 use crate::{Kinematics, MachineParams, ParamError, ReachError};
 
 /// Rectangular area of the map, mm.
@@ -56,6 +55,26 @@ pub struct Summary {
     /// Per planar motor.
     pub per_motor: [Option<Range>; 2],
     pub machine: Option<Range>,
+}
+
+/// One kind of special pose and where it lies (several pieces where it leaves the area or the reach).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SingularCurve {
+    /// What the machine does there, e.g. `left arm straight`, `distal links in line`.
+    pub label: &'static str,
+    /// Polylines, bed coordinates (mm).
+    pub pieces: Vec<Vec<[f64; 2]>>,
+}
+
+impl SingularCurve {
+    /// Total length of the pieces (mm).
+    pub fn length(&self) -> f64 {
+        self.pieces
+            .iter()
+            .flat_map(|piece| piece.windows(2))
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum()
+    }
 }
 
 /// The map: `cells[iy * nx + ix]` is the cell whose centre is `cell_centre(ix, iy)`.

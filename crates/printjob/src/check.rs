@@ -7,6 +7,7 @@ use std::path::Path;
 use gcode::Span;
 use machine::MachineSetup;
 
+use crate::envelope::{Envelope, EnvelopeSink};
 use crate::plan::{line_start, start};
 use crate::run::{RunError, RunOptions, run};
 use machine::{Machine, PlanOptions};
@@ -54,6 +55,8 @@ pub struct CheckReport {
     pub problems: Vec<Problem>,
     pub end_time: f64,
     pub slow_moves: u64,
+    /// How far the motors travel and how close the nozzle comes to the special poses.
+    pub envelope: Envelope,
     /// Every error and warning found, kept or not.
     pub error_count: usize,
     pub warning_count: usize,
@@ -66,6 +69,7 @@ impl CheckReport {
             problems: Vec::new(),
             end_time: 0.0,
             slow_moves: 0,
+            envelope: Envelope::default(),
             error_count: 0,
             warning_count: 0,
             max_problems,
@@ -102,7 +106,8 @@ pub fn check_gcode(
     max_problems: usize,
 ) -> CheckReport {
     let mut report = CheckReport::new(max_problems);
-    let (mut commands, mut planner) = start(setup, input, source_name, ());
+    let sink = EnvelopeSink::new(setup.kinematics.as_ref());
+    let (mut commands, mut planner) = start(setup, input, source_name, sink);
     while let Some(command) = commands.next_command() {
         match command {
             Err(e) => report.push(Problem {
@@ -124,8 +129,8 @@ pub fn check_gcode(
     for w in commands.take_warnings() {
         report.push(Problem::at(w.span, Severity::Warning, w.message.clone()));
     }
-    let (end_time, warnings, slow) = match planner.finish() {
-        Ok((_, end_time, warnings, slow)) => (end_time, warnings, slow),
+    let (sink, end_time, warnings, slow) = match planner.finish() {
+        Ok(finished) => finished,
         Err(_) => unreachable!("the check's sink takes every move"),
     };
     for w in warnings {
@@ -147,6 +152,7 @@ pub fn check_gcode(
         .sort_by_key(|p| (p.span.line, p.span.column));
     report.end_time = end_time;
     report.slow_moves = slow.total;
+    report.envelope = sink.envelope;
     report
 }
 

@@ -6,6 +6,7 @@
 
 pub mod audit;
 mod check;
+mod envelope;
 mod estimate;
 
 mod moves_file;
@@ -14,6 +15,7 @@ mod run;
 
 pub use audit::StepStreamError;
 pub use check::{CheckReport, Problem, Severity, audit_file, check_gcode};
+pub use envelope::{ClosestApproach, Envelope, MotorTravel, SAMPLE_MM};
 pub use estimate::{
     Estimate, EstimateError, LimitCost, Part, Reopen, SlowLine, estimate, estimate_watched,
 };

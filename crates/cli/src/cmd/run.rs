@@ -163,6 +163,8 @@ fn print_check_json(name: &str, report: &printjob::CheckReport) {
         "print_time_s": report.end_time,
         "slowed_moves": report.slow_moves,
         "problems": problems,
+        "motor_travel": report::motor_travel_json(&report.envelope),
+        "closest_to_special_poses": report::closest_json(&report.envelope),
     });
     crate::outln!(
         "{}",
@@ -187,4 +189,5 @@ fn print_check_text(name: &str, report: &printjob::CheckReport) {
         report.end_time,
         report.slow_moves
     );
+    crate::out!("{}", report::envelope(&report.envelope));
 }

@@ -222,3 +222,174 @@ fn the_workspace_maps_draw_the_singular_curves() {
         "{magenta} pixels of the parallel curve's colour"
     );
 }
+
+/// The example's geometry, written again for the check's report: bases, link lengths, the arms' turns (left
+/// clockwise, right counter-clockwise) and the distal links' (clockwise).
+const BASES: [[f64; 2]; 2] = [[-50.0, -200.0], [50.0, -200.0]];
+const PROXIMAL: f64 = 150.0;
+const DISTAL: f64 = 200.0;
+const ARM_TURN: [f64; 2] = [-1.0, 1.0];
+
+/// Twice the signed area of `a → b → c` (counter-clockwise positive).
+fn turn(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
+}
+
+/// Where the circles about `c0` (radius `r0`) and `c1` (`r1`) meet.
+fn meet(c0: [f64; 2], r0: f64, c1: [f64; 2], r1: f64) -> [[f64; 2]; 2] {
+    let (dx, dy) = (c1[0] - c0[0], c1[1] - c0[1]);
+    let d = dx.hypot(dy);
+    let a = (r0 * r0 - r1 * r1 + d * d) / (2.0 * d);
+    let h = (r0 * r0 - a * a).max(0.0).sqrt();
+    let (mx, my) = (c0[0] + a * dx / d, c0[1] + a * dy / d);
+    [
+        [mx + h * dy / d, my - h * dx / d],
+        [mx - h * dy / d, my + h * dx / d],
+    ]
+}
+
+/// The motor angles (degrees) and the |sin| of both elbows and of the distal links at the nozzle `n`.
+fn example_pose(n: [f64; 2]) -> ([f64; 2], [f64; 3]) {
+    let elbow = |side: usize| {
+        let e = meet(BASES[side], PROXIMAL, n, DISTAL);
+        let right_turn = |e: &[f64; 2]| turn(BASES[side], *e, n) * ARM_TURN[side] > 0.0;
+        e.into_iter()
+            .find(right_turn)
+            .expect("the example reaches the part")
+    };
+    let (el, er) = (elbow(0), elbow(1));
+    let angle = |side: usize, e: [f64; 2]| {
+        (e[1] - BASES[side][1])
+            .atan2(e[0] - BASES[side][0])
+            .to_degrees()
+    };
+    let arm_sin = |side: usize, e: [f64; 2]| turn(BASES[side], e, n).abs() / (PROXIMAL * DISTAL);
+    let distal_sin = turn(el, n, er).abs() / (DISTAL * DISTAL);
+    (
+        [angle(0, el), angle(1, er)],
+        [arm_sin(0, el), arm_sin(1, er), distal_sin],
+    )
+}
+
+/// `check` on the example and Cura's Ø165 mm circle tells each arm motor's travel and the closest the print comes to
+/// each special pose, as the geometry above finds them along the file's own straight lines (from the homed pose,
+/// the endstops' 150° and 30°), sampled every 0.05 mm: the check samples every 0.5 mm, so its extremes lie within
+/// what a quarter of its spacing can miss.
+#[test]
+fn check_tells_the_motor_travel_and_the_closest_approach_to_each_special_pose() {
+    let Some(shared) = shared("fivebar check report") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let part = shared.join("corpus/cura-4.10_circle-centred.gcode");
+    let config = roomy_example(dir.path(), &[]);
+    let out = jointspace(
+        dir.path(),
+        &[
+            "check",
+            "--json",
+            "-c",
+            config.to_str().expect("utf-8"),
+            part.to_str().expect("utf-8"),
+        ],
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let (angles, sins) = walk_the_file(&std::fs::read_to_string(&part).expect("part"));
+    let travel = report["motor_travel"].as_array().expect("travel");
+    for (side, name) in ["stepper_left", "stepper_right"].iter().enumerate() {
+        let m = travel
+            .iter()
+            .find(|m| m["motor"] == *name)
+            .expect("motor listed");
+        assert_eq!(m["unit"], "deg");
+        let (min, max) = (
+            m["min"].as_f64().expect("min"),
+            m["max"].as_f64().expect("max"),
+        );
+        assert!(
+            (min - angles[side].0).abs() < 0.1,
+            "{name}: {min} vs {}",
+            angles[side].0
+        );
+        assert!(
+            (max - angles[side].1).abs() < 0.1,
+            "{name}: {max} vs {}",
+            angles[side].1
+        );
+    }
+    let closest = report["closest_to_special_poses"]
+        .as_array()
+        .expect("closest");
+    let poses = [
+        "left arm straight or folded",
+        "right arm straight or folded",
+        "distal links in line",
+    ];
+    for (pose, truth) in poses.iter().zip(sins) {
+        let c = closest
+            .iter()
+            .find(|c| c["pose"] == *pose)
+            .expect("pose listed");
+        let sin = c["sin"].as_f64().expect("sin");
+        assert!(
+            sin >= truth - 1e-9 && sin - truth < 0.003,
+            "{pose}: {sin} vs {truth}"
+        );
+        assert_eq!(c["margin"].as_f64(), Some(0.1));
+        assert!(c["line"].as_u64().is_some_and(|l| l > 0), "{c}");
+    }
+}
+
+/// Every G0/G1 line's XY (absolute) from the homed pose, sampled every 0.05 mm: each motor's (min, max) angle and the
+/// smallest |sin| of each special pose.
+fn walk_the_file(text: &str) -> ([(f64, f64); 2], [f64; 3]) {
+    let [el, er] = [(0, 150f64), (1, 30f64)].map(|(side, deg)| {
+        let t = deg.to_radians();
+        [
+            BASES[side][0] + PROXIMAL * t.cos(),
+            BASES[side][1] + PROXIMAL * t.sin(),
+        ]
+    });
+    // The distal links turn clockwise at the nozzle.
+    let mut at = meet(el, DISTAL, er, DISTAL)
+        .into_iter()
+        .find(|n| turn(el, *n, er) < 0.0)
+        .expect("homed pose");
+    let mut angles = [(f64::INFINITY, f64::NEG_INFINITY); 2];
+    let mut sins = [f64::INFINITY; 3];
+    for line in text.lines().map(|l| l.split(';').next().unwrap_or("")) {
+        let mut words = line.split_whitespace();
+        if !matches!(words.next(), Some("G0" | "G1")) {
+            continue;
+        }
+        let mut to = at;
+        for w in words {
+            match w.split_at(1) {
+                ("X", v) => to[0] = v.parse().expect("X"),
+                ("Y", v) => to[1] = v.parse().expect("Y"),
+                _ => {}
+            }
+        }
+        let samples = ((to[0] - at[0]).hypot(to[1] - at[1]) / 0.05)
+            .ceil()
+            .max(1.0) as usize;
+        for i in 0..=samples {
+            let t = i as f64 / samples as f64;
+            let (a, s) = example_pose([at[0] + t * (to[0] - at[0]), at[1] + t * (to[1] - at[1])]);
+            for side in 0..2 {
+                angles[side] = (angles[side].0.min(a[side]), angles[side].1.max(a[side]));
+            }
+            for k in 0..3 {
+                sins[k] = sins[k].min(s[k]);
+            }
+        }
+        at = to;
+    }
+    (angles, sins)
+}

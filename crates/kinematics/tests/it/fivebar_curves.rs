@@ -4,9 +4,8 @@
 //! pass through in line is drawn.
 
 use kinematics::Kinematics;
-use kinematics::curves::SingularCurve;
 use kinematics::fivebar::Fivebar;
-use kinematics::workspace::{Bounds, area_for};
+use kinematics::workspace::{Bounds, SingularCurve, area_for};
 use kinematics::{MachineParams, Turn};
 
 use super::fivebar::{MODES, either_distal_turn, machine, turn};

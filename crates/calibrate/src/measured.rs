@@ -18,6 +18,11 @@ pub struct Measurement {
     pub line: usize,
 }
 
+/// Largest motor reading a row may give (degrees): a thousand turns.
+const MOST_DEGREES: f64 = 360_000.0;
+/// Largest coordinate a row may give (mm): 100 m, beyond any printer's bed, so squares and sums stay finite.
+const MOST_MM: f64 = 100_000.0;
+
 /// The rows of a measurements table under `header` (two motor angles in degrees, then x and y in mm).
 pub(crate) fn measurement_rows(
     table: &str,
@@ -26,10 +31,14 @@ pub(crate) fn measurement_rows(
     let mut rows = Vec::new();
     for row in crate::csv::data_rows(table, header)? {
         rows.push(Measurement {
-            motor_a: row.number(0)?.to_radians(),
-            motor_b: row.number(1)?.to_radians(),
-            x: row.number(2)?,
-            y: row.number(3)?,
+            motor_a: row
+                .bounded(0, MOST_DEGREES, "a thousand turns")?
+                .to_radians(),
+            motor_b: row
+                .bounded(1, MOST_DEGREES, "a thousand turns")?
+                .to_radians(),
+            x: row.bounded(2, MOST_MM, "any printer's bed, in mm")?,
+            y: row.bounded(3, MOST_MM, "any printer's bed, in mm")?,
             line: row.line,
         });
     }
@@ -40,7 +49,12 @@ pub(crate) fn measurement_rows(
 pub(crate) fn pose_rows(table: &str, header: &[&str; 4]) -> Result<Vec<(f64, f64)>, CsvError> {
     let mut poses = Vec::new();
     for row in crate::csv::data_rows(table, header)? {
-        poses.push((row.number(0)?.to_radians(), row.number(1)?.to_radians()));
+        poses.push((
+            row.bounded(0, MOST_DEGREES, "a thousand turns")?
+                .to_radians(),
+            row.bounded(1, MOST_DEGREES, "a thousand turns")?
+                .to_radians(),
+        ));
     }
     Ok(poses)
 }

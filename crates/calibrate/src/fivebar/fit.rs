@@ -134,12 +134,15 @@ pub fn identify(
         .map_err(FivebarError::NoConvergence)?;
     let g = start.with_array(&solved);
     let residual = residuals_at(start, data, &solved)
+        .filter(|r| r.norm_squared().is_finite())
         .ok_or_else(|| FivebarError::NoConvergence("the fitted links do not meet".into()))?;
-    let far = |e: FivebarError| {
-        FivebarError::NoConvergence(format!(
-            "{e} after the fit: the measurements are far from anything this machine prints (x_mm and y_mm \
-             swapped, left and right exchanged, another machine's file?)"
-        ))
+    let far = |e: FivebarError| match e {
+        FivebarError::Degenerate { index } => FivebarError::NoConvergence(format!(
+            "the fit ends where pose {} has no nozzle: the measurements are far from anything this machine \
+             prints (x_mm and y_mm swapped, left and right exchanged, another machine's file?)",
+            index + 1
+        )),
+        other => other,
     };
     let identifiability = analyse_poses(&g, &poses).map_err(far)?;
     let j = stacked_jacobian(&g, &poses).map_err(far)?;

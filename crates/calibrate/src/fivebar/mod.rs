@@ -47,8 +47,8 @@ pub enum FivebarError {
     #[error("non-finite value in measurement {}", index + 1)]
     NonFinite { index: usize },
     #[error(
-        "pose {} is where the model has no nozzle or the distal links are in line (the configured geometry cannot \
-         have printed it)", index + 1
+        "pose {} has no nozzle in the configured geometry, or its distal links are in line there: not a pose this \
+         machine prints (a pattern of another configuration?)", index + 1
     )]
     Degenerate { index: usize },
     #[error("{0}")]

@@ -366,3 +366,40 @@ fn wrong_inputs_are_judged_not_trustworthy_with_the_cause() {
     let verdict = fivebar::judge(few, &fit, &start, 0.02);
     assert!(!verdict.trustworthy && verdict.problems[0].contains("at least 10 poses"));
 }
+
+/// Measurements that are nothing this machine prints (random points on and off the bed at the pattern's poses):
+/// the fit fails with a reason or gives finite values and a finite verdict, never NaN or a panic.
+#[test]
+fn nonsense_measurements_give_a_reason_or_finite_numbers() {
+    let mut rng = StdRng::seed_from_u64(404);
+    let (_, believed) = random_machine(&mut rng);
+    let pattern = pattern_for(&believed);
+    let start = FivebarGeometry::from(&config(&believed));
+    for case in 0..20 {
+        let reach = [1.0, 100.0, 1e4][case % 3];
+        let data: Vec<Measurement> = pattern
+            .poses
+            .iter()
+            .map(|&(l, r)| Measurement {
+                motor_a: l,
+                motor_b: r,
+                x: rng.random_range(-reach..reach),
+                y: rng.random_range(-reach..reach),
+                line: 0,
+            })
+            .collect();
+        match fivebar::identify(&data, &start) {
+            Ok(fit) => {
+                let verdict = fivebar::judge(&data, &fit, &start, 0.02);
+                let numbers = fit.geometry.to_array().into_iter().chain(fit.sigma);
+                assert!(
+                    numbers
+                        .chain([fit.rms, verdict.chi_square])
+                        .all(f64::is_finite)
+                );
+                assert!(!verdict.trustworthy);
+            }
+            Err(e) => assert!(!e.to_string().is_empty()),
+        }
+    }
+}

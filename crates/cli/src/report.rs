@@ -176,9 +176,9 @@ pub fn verify(r: &convert::VerifyReport) -> String {
     text
 }
 
-/// A SCARA fit's verdict: the residuals against the stated noise, and when the fit cannot be trusted, why, the
-/// poses that fit worst and the likely causes.
-pub fn scara_verdict(v: &Verdict, data: &[Measurement]) -> String {
+/// A geometry fit's verdict (SCARA, five-bar): the residuals against the stated noise, and when the fit cannot be
+/// trusted, why, the poses that fit worst and the likely causes.
+pub fn fit_verdict(v: &Verdict, data: &[Measurement]) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,

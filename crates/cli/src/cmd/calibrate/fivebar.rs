@@ -156,7 +156,7 @@ pub fn fit(args: FitArgs) -> miette::Result<ExitCode> {
         );
     } else {
         let mut text = report::fivebar_fit(&fit, data.len());
-        text += &report::scara_verdict(&verdict, &data);
+        text += &report::fit_verdict(&verdict, &data);
         if verdict.trustworthy {
             let _ = write!(
                 text,

@@ -322,7 +322,7 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         );
     } else {
         let mut text = report::scara_fit(&fit, data.len());
-        text += &report::scara_verdict(&verdict, data);
+        text += &report::fit_verdict(&verdict, data);
         if !crate::output::is_stdio(&args.out) {
             let _ = writeln!(text, "  result written to {}", args.out.display());
         }

@@ -4,10 +4,10 @@
 //! the G-code. `calibrate fivebar-pattern` and the simulator both call [`machine_pattern`].
 //!
 //! Candidates lie on a grid over the box both arms reach; one is kept only where the machine accepts the whole
-//! cross and a millimetre around it, away from its special poses. A greedy D-optimal design (the identification's Jacobian at the configured
-//! geometry) picks the poses one at a time, each at least a cross and a gap from the others; the crosses are
-//! printed in order of the left motor, travels between them turning the motors together (via points every few
-//! degrees, each segment checked by the machine), or straight where that is refused.
+//! cross and a millimetre around it, away from its special poses. A greedy D-optimal design (the identification's
+//! Jacobian at the configured geometry) picks the poses one at a time, each at least a cross and a gap from the
+//! others; the crosses are printed in order of the left motor, travels between them turning the motors together
+//! (via points every few degrees, each segment checked by the machine), or straight where that is refused.
 
 use std::fmt::Write as _;
 

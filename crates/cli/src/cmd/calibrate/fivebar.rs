@@ -86,6 +86,15 @@ pub fn pattern(args: PatternArgs) -> miette::Result<ExitCode> {
         Ok(w.write_all(pattern.template.as_bytes())?)
     })
     .map_err(super::super::plain)?;
+    if pattern.poses.len() < args.poses {
+        crate::errln!(
+            "warning: {} crosses of the {} asked: no more poses of this machine take a whole {} mm cross apart from \
+             the others",
+            pattern.poses.len(),
+            args.poses,
+            args.cross
+        );
+    }
     crate::outln!(
         "{} crosses written to {} (condition number of the poses {:.1}), their motor readings to {}; print it, \
          measure each cross centre, fill in x_mm and y_mm and run `jointspace calibrate fivebar -c {} \

@@ -208,7 +208,11 @@ mod tests {
         assert_eq!(rows[0].bounded(0, 10.0, "ten"), Ok(1.0));
         let far = rows[0].bounded(1, 1e6, "a million").expect_err("refused");
         assert_eq!((far.line, far.column), (2, 4));
-        assert!(far.message.contains("`2e9` is beyond a million"), "{}", far.message);
+        assert!(
+            far.message.contains("`2e9` is beyond a million"),
+            "{}",
+            far.message
+        );
         let rows = data_rows("a,b\n1,x\n", &["a", "b"]).expect("parses");
         assert_eq!(
             rows[0].number(1).err().map(|e| (e.line, e.column)),

@@ -97,6 +97,46 @@ fn residuals_at(start: &FivebarGeometry, data: &[Measurement], v: &[f64]) -> Opt
     r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
+/// The Jacobian of the residuals the fit minimises at a trial geometry: analytic where the distal links meet; at
+/// a trial step where they would not (the residuals then use the model's nearest point,
+/// [`FivebarGeometry::forward_lenient`]), that point's central differences, so the fit is led back rather than
+/// stopped by a zero gradient.
+fn trial_jacobian(g: &FivebarGeometry, poses: &[(f64, f64)]) -> DMatrix<f64> {
+    let mut j = DMatrix::zeros(2 * poses.len(), PARAMETERS);
+    for (i, &(a, b)) in poses.iter().enumerate() {
+        let rows = g
+            .parameter_jacobian(a, b)
+            .unwrap_or_else(|| lenient_rows(g, a, b));
+        for (k, row) in rows.iter().enumerate() {
+            for (c, v) in row.iter().enumerate() {
+                j[(2 * i + k, c)] = *v;
+            }
+        }
+    }
+    j
+}
+
+/// Central differences of [`FivebarGeometry::forward_lenient`] (zero where it is not defined either).
+fn lenient_rows(g: &FivebarGeometry, a: f64, b: f64) -> [[f64; PARAMETERS]; 2] {
+    const STEP: f64 = 1e-6;
+    let v = g.to_array();
+    let mut rows = [[0.0; PARAMETERS]; 2];
+    for c in 0..PARAMETERS {
+        let (mut up, mut down) = (v, v);
+        up[c] += STEP;
+        down[c] -= STEP;
+        let moved = (
+            g.with_array(&up).forward_lenient(a, b),
+            g.with_array(&down).forward_lenient(a, b),
+        );
+        if let (Some(p), Some(q)) = moved {
+            rows[0][c] = (p[0] - q[0]) / (2.0 * STEP);
+            rows[1][c] = (p[1] - q[1]) / (2.0 * STEP);
+        }
+    }
+    rows
+}
+
 /// Checks the measurements before a fit: enough of them, all finite.
 fn check_data(data: &[Measurement]) -> Result<(), FivebarError> {
     if 2 * data.len() < PARAMETERS {
@@ -124,11 +164,7 @@ pub fn identify(
     if !before.is_identifiable() {
         return Err(FivebarError::Unidentifiable(before.describe()));
     }
-    // A step the model cannot take (distal links apart) is a zero row here; the residuals refuse it.
-    let jacobian = |v: &[f64]| {
-        stacked_jacobian(&start.with_array(v), &poses)
-            .unwrap_or_else(|_| DMatrix::zeros(2 * poses.len(), PARAMETERS))
-    };
+    let jacobian = |v: &[f64]| trial_jacobian(&start.with_array(v), &poses);
     let residuals = |v: &[f64]| residuals_at(start, data, v);
     let solved = crate::lsq::minimise(&start.to_array(), &residuals, &jacobian)
         .map_err(FivebarError::NoConvergence)?;

@@ -159,7 +159,7 @@ fn pattern_for(believed: &Machine) -> fivebar::Pattern {
 
 /// Bounds on the identified values: lengths and positions (mm), zeros (°). A base position and its side's distal
 /// length are correlated (moving the base along the distal links and lengthening them moves the nozzle little):
-/// their σ is 0.015–0.035 mm at 0.02 mm noise, and the worst of 240 values lies near 4σ.
+/// their σ is 0.015–0.035 mm at 0.02 mm noise, and the worst of 1000 values lies near 4σ.
 const LENGTH_BOUND: f64 = 0.12;
 const ZERO_BOUND_DEG: f64 = 0.03;
 /// Bound on where the corrected machine puts the nozzle over its printing area (mm).
@@ -216,14 +216,15 @@ fn the_listed_readings_put_the_believed_nozzle_at_each_written_centre() {
     }
 }
 
-/// 24 random machines, 0.02 mm measuring noise: every parameter within its bound, the errors mostly within the
-/// reported 2σ, every fit judged trustworthy, the corrected nozzle within its bound.
+/// 100 random machines, 0.02 mm measuring noise: every parameter within its bound, the errors mostly within the
+/// reported 2σ, every fit judged trustworthy, the corrected nozzle within its bound. (Machine 78 of this seed once
+/// led the fit to a trial step where a pose's distal links did not meet, and the fit stopped there.)
 #[test]
 fn random_machines_are_identified_from_the_default_pattern() {
     let mut rng = StdRng::seed_from_u64(2929);
     let (mut within_2sigma, mut total, mut worst_nozzle) = (0, 0, 0.0f64);
     let mut worst = [0.0f64; 2];
-    for machine in 0..24 {
+    for machine in 0..100 {
         let (truth, believed) = random_machine(&mut rng);
         let pattern = pattern_for(&believed);
         let data = measured(&truth, &pattern.poses, 0.02, &mut rng);

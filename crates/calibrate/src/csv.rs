@@ -34,6 +34,19 @@ impl Row<'_> {
             .ok_or_else(|| self.error(column, format!("`{text}` is not a finite number")))
     }
 
+    /// Field `index` as a number within ±`limit` (`what` names the limit in the message).
+    pub fn bounded(&self, index: usize, limit: f64, what: &str) -> Result<f64, CsvError> {
+        let v = self.number(index)?;
+        if v.abs() <= limit {
+            return Ok(v);
+        }
+        let (column, text) = self.fields[index];
+        Err(self.error(
+            column,
+            format!("`{text}` is beyond {what} (at most ±{limit})"),
+        ))
+    }
+
     /// An error pointing at field `index`.
     pub fn error_at(&self, index: usize, message: String) -> CsvError {
         self.error(self.fields[index].0, message)
@@ -191,6 +204,15 @@ mod tests {
         assert_eq!(place("a,c\n"), Some((1, 3)));
         assert_eq!(place("a,b\n1\n"), Some((2, 1)));
         assert_eq!(place(""), Some((1, 1)));
+        let rows = data_rows("a,b\n1, 2e9\n", &["a", "b"]).expect("parses");
+        assert_eq!(rows[0].bounded(0, 10.0, "ten"), Ok(1.0));
+        let far = rows[0].bounded(1, 1e6, "a million").expect_err("refused");
+        assert_eq!((far.line, far.column), (2, 4));
+        assert!(
+            far.message.contains("`2e9` is beyond a million"),
+            "{}",
+            far.message
+        );
         let rows = data_rows("a,b\n1,x\n", &["a", "b"]).expect("parses");
         assert_eq!(
             rows[0].number(1).err().map(|e| (e.line, e.column)),

@@ -55,7 +55,7 @@ enum Command {
     Workspace(cmd::workspace::Args),
     /// Rewrite G-code for firmware without these kinematics (radius/angle or joint angles), with a bounded path error.
     Convert(cmd::convert::Args),
-    /// Calibrate: the polar bed's rotation centre, or SCARA arm geometry.
+    /// Calibrate: the polar bed's rotation centre, SCARA arm geometry, or a five-bar's geometry.
     #[command(subcommand)]
     Calibrate(cmd::calibrate::Command),
     /// Simulate the printer as built (with assembly errors): the deformation of a print, and its correction.

@@ -182,9 +182,9 @@ pub fn verify(r: &convert::VerifyReport) -> String {
     text
 }
 
-/// A SCARA fit's verdict: the residuals against the stated noise, and when the fit cannot be trusted, why, the
-/// poses that fit worst and the likely causes.
-pub fn scara_verdict(v: &Verdict, data: &[Measurement]) -> String {
+/// A geometry fit's verdict (SCARA, five-bar): the residuals against the stated noise, and when the fit cannot be
+/// trusted, why, the poses that fit worst and the likely causes.
+pub fn fit_verdict(v: &Verdict, data: &[Measurement]) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,
@@ -364,4 +364,48 @@ pub fn closest_json(e: &printjob::Envelope) -> serde_json::Value {
             })
         })
         .collect()
+}
+
+/// An identified five-bar: each key with its uncertainty, the poses' condition in the bed frame, and what
+/// measurements fixing no frame would leave undetermined.
+pub fn fivebar_fit(fit: &calibrate::fivebar::Identification, measurements: usize) -> String {
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "identified from {} measurements (residual RMS {:.4} mm):",
+        measurements, fit.rms
+    );
+    let values = fit.geometry.to_array();
+    for (k, name) in calibrate::fivebar::PARAM_NAMES.iter().enumerate() {
+        let unit = if k % 5 == 4 {
+            180.0 / std::f64::consts::PI
+        } else {
+            1.0
+        };
+        let _ = writeln!(
+            text,
+            "  {name:<22} {:>12.5} ± {:.5}",
+            values[k] * unit,
+            fit.sigma[k] * unit
+        );
+    }
+    let _ = writeln!(text, "  (mm; zeros in degrees)");
+    let id = &fit.identifiability;
+    let _ = writeln!(
+        text,
+        "  condition number of the poses (measured in the bed frame): {:.1}",
+        id.condition_number
+    );
+    for combination in &fit.free_frame.unidentifiable {
+        let terms: Vec<String> = combination
+            .iter()
+            .map(|(n, w)| format!("{w:+.2}·{n}"))
+            .collect();
+        let _ = writeln!(
+            text,
+            "  measured relative to each other only (no bed frame), not identified: {}",
+            terms.join(" ")
+        );
+    }
+    text
 }

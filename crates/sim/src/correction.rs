@@ -8,15 +8,19 @@
 //!   0.01 mm), fitted by `calibrate::scara::identify_in_frame` and judged by `calibrate::scara::judge` as
 //!   `calibrate scara` judges it; a fit judged not trustworthy is not applied (a user would not apply it). Link
 //!   lengths, offsets, joint zeros and the coupling go into the believed config.
+//! - five-bar: the same with the five-bar's pattern (`calibrate::fivebar::machine_pattern`), fit and verdict;
+//!   both sides' base positions, link lengths and zeros go into the believed config.
 
-use crate::crosses::{CALIPERS, print_and_measure};
+use crate::crosses::{CALIPERS, print_and_measure, print_and_measure_fivebar};
 use crate::error::SimulationError;
 use crate::hall::{HallBedConfig, HallScanner};
 use crate::machine::Machine;
+use calibrate::fivebar::{self, FivebarGeometry};
 use calibrate::scan::{ScanParams, scan_centre};
 use calibrate::scara::{ScaraGeometry, identify_in_frame, judge};
+use calibrate::verdict::Verdict;
 use config::MachineConfig;
-use kinematics::{MachineParams, PolarParams, ScaraParams};
+use kinematics::{FivebarParams, MachineParams, PolarParams, ScaraParams};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use serde::Serialize;
@@ -93,9 +97,13 @@ pub fn calibrate_and_correct(
             let (p, s) = correct_scara(believed, b, a, actual, seed)?;
             (MachineParams::Scara(p), s)
         }
+        (MachineParams::Fivebar(b), MachineParams::Fivebar(a)) => {
+            let (p, s) = correct_fivebar(believed, b, a, actual, seed)?;
+            (MachineParams::Fivebar(p), s)
+        }
         _ => {
             return Err(Rejected::Failed(SimulationError::Calibration(
-                "automatic calibration exists for polar and SCARA machines of the same kind".into(),
+                "automatic calibration exists for polar, SCARA and five-bar machines of the same kind".into(),
             )));
         }
     };
@@ -196,6 +204,29 @@ fn correct_scara(
         .zip(t.to_array())
         .map(|(((n, b), m), a)| value(n, b, m, a))
         .collect();
+    let summary = pattern_summary("SCARA", data.len(), values, fit.rms, &verdict)?;
+    let corrected = ScaraParams {
+        link1_length: g.link1_length,
+        link2_length: g.link2_length,
+        offset_x: g.offset_x,
+        offset_y: g.offset_y,
+        shoulder_zero: g.shoulder_zero,
+        elbow_zero: g.elbow_zero,
+        elbow_coupling: g.elbow_coupling,
+        ecr: None,
+        ..believed.clone()
+    };
+    Ok((corrected, summary))
+}
+
+/// The summary of a calibration from the printed pattern, or the rejection when its verdict is not trustworthy.
+fn pattern_summary(
+    kind: &str,
+    crosses: usize,
+    values: Vec<CorrectedValue>,
+    rms: f64,
+    verdict: &Verdict,
+) -> Result<CorrectionSummary, Rejected> {
     let judged = if verdict.trustworthy {
         "trustworthy".to_string()
     } else {
@@ -203,12 +234,11 @@ fn correct_scara(
     };
     let summary = CorrectionSummary {
         method: format!(
-            "SCARA identification from the {} crosses of the default pattern, printed by the machine as built and \
-             measured where their strokes cross",
-            data.len()
+            "{kind} identification from the {crosses} crosses of the default pattern, printed by the machine as \
+             built and measured where their strokes cross"
         ),
         values,
-        rms: fit.rms,
+        rms,
         notes: vec![
             format!(
                 "crosses measured as with calipers: {} mm noise (1σ per coordinate), read to {} mm",
@@ -227,16 +257,41 @@ fn correct_scara(
             reason,
         });
     }
-    let corrected = ScaraParams {
-        link1_length: g.link1_length,
-        link2_length: g.link2_length,
-        offset_x: g.offset_x,
-        offset_y: g.offset_y,
-        shoulder_zero: g.shoulder_zero,
-        elbow_zero: g.elbow_zero,
-        elbow_coupling: g.elbow_coupling,
-        ecr: None,
-        ..believed.clone()
-    };
+    Ok(summary)
+}
+
+/// A five-bar calibrated from its printed pattern: both sides' base positions, link lengths and zeros.
+fn correct_fivebar(
+    believed_config: &MachineConfig,
+    believed: &FivebarParams,
+    truth: &FivebarParams,
+    actual: &Machine,
+    seed: u64,
+) -> Result<(FivebarParams, CorrectionSummary), Rejected> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let (_, data) = print_and_measure_fivebar(believed_config, actual, CALIPERS, &mut rng)?;
+    let start = FivebarGeometry::from(believed);
+    let fit = fivebar::identify(&data, &start)
+        .map_err(|e| SimulationError::Calibration(e.to_string()))?;
+    let verdict = fivebar::judge(&data, &fit, &start, CALIPERS.noise);
+    let g = fit.geometry;
+    let values = fivebar::PARAM_NAMES
+        .iter()
+        .zip(start.to_array())
+        .zip(g.to_array())
+        .zip(FivebarGeometry::from(truth).to_array())
+        .map(|(((n, b), m), a)| value(n, b, m, a))
+        .collect();
+    let summary = pattern_summary("five-bar", data.len(), values, fit.rms, &verdict)?;
+    let mut corrected = believed.clone();
+    for (arm, side) in [
+        (&mut corrected.left, g.left),
+        (&mut corrected.right, g.right),
+    ] {
+        arm.base = side.base;
+        arm.proximal = side.proximal;
+        arm.distal = side.distal;
+        arm.zero = side.zero;
+    }
     Ok((corrected, summary))
 }

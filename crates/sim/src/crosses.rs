@@ -1,5 +1,6 @@
-//! The SCARA calibration pattern as a user gets it: the pattern `calibrate scara-pattern` writes for the believed
-//! machine (`calibrate::scara::machine_pattern`, the one pattern maker), printed by the machine as built (its step
+//! The SCARA's and the five-bar's calibration pattern as a user gets it: the pattern `calibrate scara-pattern` or
+//! `calibrate fivebar-pattern` writes for the believed machine (`calibrate::scara::machine_pattern`,
+//! `calibrate::fivebar::machine_pattern`, the one pattern maker of each), printed by the machine as built (its step
 //! streams replayed on the true geometry and motor model), each cross centre measured where its two printed strokes
 //! cross, with the measuring method's noise and reading resolution.
 
@@ -10,6 +11,7 @@ use crate::replay::ReplayOptions;
 use crate::simulation::simulate;
 use calibrate::scara::{Measurement, Pattern, PatternOptions, machine_pattern};
 use config::MachineConfig;
+use kinematics::fivebar::Fivebar;
 use kinematics::scara::Scara;
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
@@ -53,20 +55,75 @@ pub fn print_and_measure(
     };
     let pattern = machine_pattern(scara, calibrate::scara::DEFAULT_POSES, &options)
         .map_err(|e| SimulationError::Calibration(format!("calibration pattern: {e}")))?;
-    let printed = simulate(
+    let printed = Printed {
+        gcode: &pattern.gcode,
+        poses: &pattern.poses,
+        centres: &pattern.centres,
+        half: options.cross_size / 2.0,
+    };
+    let data = measure_printed(believed, actual, &printed, measuring, rng)?;
+    Ok(MeasuredPattern { pattern, data })
+}
+
+/// A pattern to print: its G-code, each cross's motor readings and centre as written, the crosses' half size.
+#[derive(Debug, Clone, Copy)]
+pub struct Printed<'a> {
+    pub gcode: &'a str,
+    pub poses: &'a [(f64, f64)],
+    pub centres: &'a [[f64; 2]],
+    pub half: f64,
+}
+
+/// The five-bar's default pattern of the believed machine printed on `actual`, its crosses measured: the pattern
+/// and the measurements.
+pub fn print_and_measure_fivebar(
+    believed: &MachineConfig,
+    actual: &Machine,
+    measuring: Measuring,
+    rng: &mut impl Rng,
+) -> Result<(calibrate::fivebar::Pattern, Vec<Measurement>), SimulationError> {
+    let machine = ::machine::Machine::from_config(believed.clone(), "believed machine")?;
+    let kin = Fivebar::of(machine.setup.kinematics.as_ref()).ok_or_else(|| {
+        SimulationError::Calibration("the believed machine is not a five-bar".into())
+    })?;
+    let options = PatternOptions {
+        home: machine.setup.home_position,
+        ..PatternOptions::default()
+    };
+    let pattern =
+        calibrate::fivebar::machine_pattern(kin, calibrate::fivebar::DEFAULT_POSES, &options)
+            .map_err(|e| SimulationError::Calibration(format!("calibration pattern: {e}")))?;
+    let printed = Printed {
+        gcode: &pattern.gcode,
+        poses: &pattern.poses,
+        centres: &pattern.centres,
+        half: options.cross_size / 2.0,
+    };
+    let data = measure_printed(believed, actual, &printed, measuring, rng)?;
+    Ok((pattern, data))
+}
+
+/// Print `printed` planned for the believed machine on `actual` and measure each cross where its strokes cross.
+pub fn measure_printed(
+    believed: &MachineConfig,
+    actual: &Machine,
+    printed: &Printed,
+    measuring: Measuring,
+    rng: &mut impl Rng,
+) -> Result<Vec<Measurement>, SimulationError> {
+    let run = simulate(
         believed,
         actual,
-        pattern.gcode.as_bytes(),
-        "scara-pattern.gcode",
+        printed.gcode.as_bytes(),
+        "calibration-pattern.gcode",
         &ReplayOptions::default(),
     )?;
     let noise = Normal::new(0.0, measuring.noise)
         .map_err(|e| SimulationError::Calibration(e.to_string()))?;
     let mut read = |v: f64| round_to(v + noise.sample(rng), measuring.resolution);
-    let half = options.cross_size / 2.0;
-    let mut data = Vec::with_capacity(pattern.poses.len());
-    for (i, (&(a, b), &c)) in pattern.poses.iter().zip(&pattern.centres).enumerate() {
-        let at = printed_centre(&printed.replay.path, c, half).ok_or_else(|| {
+    let mut data = Vec::with_capacity(printed.poses.len());
+    for (i, (&(a, b), &c)) in printed.poses.iter().zip(printed.centres).enumerate() {
+        let at = printed_centre(&run.replay.path, c, printed.half).ok_or_else(|| {
             SimulationError::Calibration(format!(
                 "cross {} at X{:.3} Y{:.3} was not printed whole",
                 i + 1,
@@ -82,7 +139,7 @@ pub fn print_and_measure(
             line: i + 1,
         });
     }
-    Ok(MeasuredPattern { pattern, data })
+    Ok(data)
 }
 
 fn round_to(v: f64, step: f64) -> f64 {

@@ -9,7 +9,9 @@
 //!
 //! Microsteps per full step come from each stepper's own section. Geometric assembly errors use the normal
 //! keys: polar `arm_zero_offset`/`arm_lateral_offset`; SCARA `link1_length`, `link2_length`, `offset_x`,
-//! `offset_y`, `ecr`/`elbow_coupling`, `shoulder_zero`, `elbow_zero`.
+//! `offset_y`, `ecr`/`elbow_coupling`, `shoulder_zero`, `elbow_zero`; five-bar `left_base_x`, `left_base_y`,
+//! `right_base_x`, `right_base_y`, `left_proximal_length`, `right_proximal_length`, `left_distal_length`,
+//! `right_distal_length`, `left_zero`, `right_zero` (backlash of its joints in degrees, as the SCARA's).
 
 use crate::error::SimulationError;
 use crate::motor::MotorError;

@@ -21,6 +21,10 @@ pub const POLAR_EXAMPLE: &str = include_str!("../../../examples/machines/polar.c
 /// The bundled example SCARA printer (`examples/machines/scara.cfg`): FEKT-SCARA's 100/100 mm arms, ECR 3.
 pub const SCARA_EXAMPLE: &str = include_str!("../../../examples/machines/scara.cfg");
 
+/// The bundled example five-bar (`examples/machines/fivebar.cfg`): bases 100 mm apart, 150/200 mm links, homed at
+/// its endstops with the nozzle at (0, −37.6).
+pub const FIVEBAR_EXAMPLE: &str = include_str!("../../../examples/machines/fivebar.cfg");
+
 /// `text` with `keys` (`key: value` lines) set in `[section]`: a second `[section]` at the end, which the
 /// reader merges into the first as Klipper does, its keys winning.
 pub fn with_keys(text: &str, section: &str, keys: &str) -> String {
@@ -64,6 +68,14 @@ pub const SCARA_CIRCLES: [([f64; 2], f64); 3] = [
     ([-60.0, 110.0], 12.0),
     ([55.0, 150.0], 10.0),
 ];
+
+/// Circles and squares of the five-bar demo print, inside the example's printing area away from its special poses.
+pub const FIVEBAR_CIRCLES: [([f64; 2], f64); 3] = [
+    ([0.0, 40.0], 20.0),
+    ([-45.0, 80.0], 12.0),
+    ([45.0, 10.0], 10.0),
+];
+pub const FIVEBAR_SQUARES: [([f64; 2], f64); 1] = [([-30.0, 0.0], 16.0)];
 
 /// Believed and actual config of a scenario, from config text plus `[printer]` keys that set the actual one
 /// apart (its assembly errors).
@@ -144,6 +156,28 @@ pub fn scara_coupling_loop() -> Result<ClosedLoop, SimulationError> {
     )
 }
 
+/// The five-bar demo's assembly errors: the left base joint 0.3 mm further left, the right proximal link 0.4 mm
+/// long, the left motor's zero 0.5° off.
+pub const FIVEBAR_ERRORS: &str = "left_base_x: -50.3\nright_proximal_length: 150.4\nleft_zero: 0.5";
+
+/// The five-bar demo: the example built with [`FIVEBAR_ERRORS`], homed, printing the generated circles.
+pub fn fivebar_loop() -> Result<ClosedLoop, SimulationError> {
+    let (believed, actual_cfg) = scenario_configs(FIVEBAR_EXAMPLE, FIVEBAR_ERRORS)?;
+    let actual = Machine::from_config(&actual_cfg)?;
+    let text = format!(
+        "G28\n{}",
+        test_print_gcode(&FIVEBAR_CIRCLES, &FIVEBAR_SQUARES, 2, None)
+    );
+    closed_loop(
+        &believed,
+        &actual,
+        || Ok(text.as_bytes()),
+        "fivebar-circles",
+        &ReplayOptions::default(),
+        13,
+    )
+}
+
 /// Run a closed-loop scenario and write its report into `out_dir`; returns the report.
 pub fn write_closed_loop_report(
     out_dir: &std::path::Path,
@@ -185,6 +219,18 @@ pub fn scara_coupling_demo(out_dir: &std::path::Path) -> Result<Report, Simulati
         &run,
         "FEKT-SCARA (ECR 3, 100/100 mm)",
         "ECR 3.2, L1 100.5 mm",
+        "generated circles",
+    )
+}
+
+/// The five-bar demo written to `out_dir` (left base 0.3 mm off, right proximal link 0.4 mm long, left zero 0.5°).
+pub fn fivebar_demo(out_dir: &std::path::Path) -> Result<Report, SimulationError> {
+    let run = fivebar_loop()?;
+    write_closed_loop_report(
+        out_dir,
+        &run,
+        "five-bar example (150/200 mm links)",
+        "left base −50.3, right proximal 150.4 mm, left zero 0.5°",
         "generated circles",
     )
 }

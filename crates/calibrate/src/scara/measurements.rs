@@ -41,16 +41,7 @@ pub struct MeasurementFile {
 pub fn parse_measurement_file(text: &str, file: &str) -> Result<MeasurementFile, ScaraError> {
     let located = located_in(file);
     let (frame, table) = frame_line(text).map_err(located)?;
-    let mut rows = Vec::new();
-    for row in crate::csv::data_rows(&table, &CSV_HEADER).map_err(located)? {
-        rows.push(Measurement {
-            motor_a: row.number(0).map_err(located)?.to_radians(),
-            motor_b: row.number(1).map_err(located)?.to_radians(),
-            x: row.number(2).map_err(located)?,
-            y: row.number(3).map_err(located)?,
-            line: row.line,
-        });
-    }
+    let rows = crate::measured::measurement_rows(&table, &CSV_HEADER).map_err(located)?;
     Ok(MeasurementFile { frame, rows })
 }
 
@@ -76,13 +67,7 @@ pub struct PoseFile {
 pub fn parse_pose_file(text: &str, file: &str) -> Result<PoseFile, ScaraError> {
     let located = located_in(file);
     let (frame, table) = frame_line(text).map_err(located)?;
-    let mut poses = Vec::new();
-    for row in crate::csv::data_rows(&table, &CSV_HEADER).map_err(located)? {
-        poses.push((
-            row.number(0).map_err(located)?.to_radians(),
-            row.number(1).map_err(located)?.to_radians(),
-        ));
-    }
+    let poses = crate::measured::pose_rows(&table, &CSV_HEADER).map_err(located)?;
     Ok(PoseFile { frame, poses })
 }
 
@@ -113,18 +98,7 @@ fn frame_line(text: &str) -> Result<(Option<(ScaraFrame, usize)>, String), crate
     Ok((Some((frame, setting.line)), table))
 }
 
-/// Degrees with enough decimals that the angle read back is the listed one within 1e-11 rad.
-pub(crate) fn degrees(v: f64) -> String {
-    let s = format!("{:.10}", v.to_degrees());
-    if s.trim_start_matches('-')
-        .chars()
-        .all(|c| c == '0' || c == '.')
-    {
-        "0.0000000000".to_string()
-    } else {
-        s
-    }
-}
+pub(crate) use crate::measured::degrees;
 
 /// The measurements file to fill in: the frame line, then one row per pose with its motor angles, `x_mm` and `y_mm`
 /// left to the person measuring the printed crosses.

@@ -20,11 +20,16 @@
 //! *motor* is identifiable but poorly conditioned.
 
 mod measurements;
-mod pattern;
+pub(crate) mod pattern;
 pub mod scan_fit;
 pub mod scan_image;
 mod verdict;
 
+pub use crate::lsq::Identifiability;
+pub use crate::measured::Measurement;
+pub use crate::verdict::{
+    FALSE_ALARM, MIN_RESIDUAL_DOF, MeasuringMethod, PoseResidual, Verdict, chi_square_limit,
+};
 pub use measurements::{
     CSV_HEADER, MeasurementFile, PoseFile, frame_name, measurement_template,
     parse_measurement_file, parse_measurements, parse_pose_file,
@@ -33,13 +38,10 @@ pub use pattern::{
     DEFAULT_POSES, MIN_POSES, Pattern, PatternError, PatternOptions, REFERENCE_ACROSS,
     REFERENCE_REACH, machine_pattern,
 };
-pub use verdict::{
-    FALSE_ALARM, MIN_RESIDUAL_DOF, MeasuringMethod, PoseResidual, Verdict, chi_square_limit, judge,
-};
+pub use verdict::judge;
 
 use kinematics::ScaraFrame;
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 /// Parameter names in vector order.
@@ -164,17 +166,6 @@ impl ScaraGeometry {
     }
 }
 
-/// One measured pose: commanded motor angles (rad) and the nozzle position measured on the bed (mm).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Measurement {
-    pub motor_a: f64,
-    pub motor_b: f64,
-    pub x: f64,
-    pub y: f64,
-    /// Source line (1-based), 0 when not from a file.
-    pub line: usize,
-}
-
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ScaraError {
     #[error("{file}:{line}:{column}: {message}")]
@@ -194,42 +185,6 @@ pub enum ScaraError {
     NonFinite { index: usize },
 }
 
-/// How well a pose set determines the parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Identifiability {
-    /// Singular values of the column-normalised Jacobian, largest first.
-    pub singular_values: Vec<f64>,
-    /// Largest over smallest singular value (infinite when a combination is not identified at all).
-    pub condition_number: f64,
-    /// Parameter combinations the poses cannot determine: right singular vectors with negligible singular
-    /// value, as (parameter name, weight) pairs with |weight| ≥ 0.1.
-    pub unidentifiable: Vec<Vec<(String, f64)>>,
-}
-
-impl Identifiability {
-    pub fn is_identifiable(&self) -> bool {
-        self.unidentifiable.is_empty()
-    }
-
-    /// A readable list of the unidentifiable combinations.
-    pub fn describe(&self) -> String {
-        self.unidentifiable
-            .iter()
-            .map(|combo| {
-                combo
-                    .iter()
-                    .map(|(n, w)| format!("{w:+.2}·{n}"))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            })
-            .collect::<Vec<_>>()
-            .join("; ")
-    }
-}
-
-/// Relative singular value below which a combination counts as not identified.
-const NULL_RELATIVE: f64 = 1e-7;
-
 fn stacked_jacobian(g: &ScaraGeometry, poses: &[(f64, f64)]) -> DMatrix<f64> {
     let mut j = DMatrix::zeros(2 * poses.len(), 7);
     for (i, &(a, b)) in poses.iter().enumerate() {
@@ -246,61 +201,7 @@ fn stacked_jacobian(g: &ScaraGeometry, poses: &[(f64, f64)]) -> DMatrix<f64> {
 /// Singular values and null combinations of the identification Jacobian at `g` for motor poses (rad).
 /// Columns are normalised to unit length first so mm and rad parameters compare fairly.
 pub fn analyse_poses(g: &ScaraGeometry, poses: &[(f64, f64)]) -> Identifiability {
-    let mut j = stacked_jacobian(g, poses);
-    let mut zero_columns = Vec::new();
-    for c in 0..7 {
-        let norm = j.column(c).norm();
-        if norm > 0.0 {
-            j.column_mut(c).unscale_mut(norm);
-        } else {
-            zero_columns.push(c);
-        }
-    }
-    // Pad to at least 7 rows so the SVD yields all 7 right singular vectors.
-    if j.nrows() < 7 {
-        j = j.resize_vertically(7, 0.0);
-    }
-    let svd = j.svd(false, true);
-    let mut pairs: Vec<(f64, Vec<f64>)> = match &svd.v_t {
-        Some(vt) => (0..7)
-            .map(|k| (svd.singular_values[k], vt.row(k).iter().copied().collect()))
-            .collect(),
-        None => Vec::new(),
-    };
-    pairs.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let smax = pairs.first().map_or(0.0, |p| p.0);
-    let unidentifiable: Vec<Vec<(String, f64)>> = pairs
-        .iter()
-        .filter(|(s, _)| smax <= 0.0 || *s <= NULL_RELATIVE * smax)
-        .map(|(_, v)| {
-            let sign = if v
-                .iter()
-                .copied()
-                .fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m })
-                < 0.0
-            {
-                -1.0
-            } else {
-                1.0
-            };
-            v.iter()
-                .enumerate()
-                .filter(|(_, w)| w.abs() >= 0.1)
-                .map(|(k, w)| (PARAM_NAMES[k].to_string(), sign * w))
-                .collect()
-        })
-        .collect();
-    let smin = pairs.last().map_or(0.0, |p| p.0);
-    let condition_number = if unidentifiable.is_empty() && smin > 0.0 {
-        smax / smin
-    } else {
-        f64::INFINITY
-    };
-    Identifiability {
-        singular_values: pairs.iter().map(|p| p.0).collect(),
-        condition_number,
-        unidentifiable,
-    }
+    crate::lsq::analyse_jacobian(stacked_jacobian(g, poses), &PARAM_NAMES)
 }
 
 /// A fitted geometry with its uncertainty and diagnostics.
@@ -318,47 +219,16 @@ pub struct Identification {
     pub identifiability: Identifiability,
 }
 
-struct FitProblem<'a> {
-    data: &'a [Measurement],
-    params: DVector<f64>,
-}
-
-impl FitProblem<'_> {
-    fn geometry(&self) -> ScaraGeometry {
-        let mut v = [0.0; 7];
-        v.copy_from_slice(self.params.as_slice());
-        ScaraGeometry::from_array(v)
+/// Residuals (model − measured) of `data` at parameters `v`, None when not finite.
+fn residuals_at(data: &[Measurement], v: &[f64]) -> Option<DVector<f64>> {
+    let g = ScaraGeometry::from_array(std::array::from_fn(|k| v[k]));
+    let mut r = DVector::zeros(2 * data.len());
+    for (i, m) in data.iter().enumerate() {
+        let p = g.forward(m.motor_a, m.motor_b);
+        r[2 * i] = p[0] - m.x;
+        r[2 * i + 1] = p[1] - m.y;
     }
-}
-
-impl LeastSquaresProblem<f64, Dyn, Dyn> for FitProblem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, x: &DVector<f64>) {
-        self.params.copy_from(x);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.params.clone()
-    }
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let g = self.geometry();
-        let mut r = DVector::zeros(2 * self.data.len());
-        for (i, m) in self.data.iter().enumerate() {
-            let p = g.forward(m.motor_a, m.motor_b);
-            r[2 * i] = p[0] - m.x;
-            r[2 * i + 1] = p[1] - m.y;
-        }
-        r.iter().all(|v| v.is_finite()).then_some(r)
-    }
-
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let poses: Vec<(f64, f64)> = self.data.iter().map(|m| (m.motor_a, m.motor_b)).collect();
-        Some(stacked_jacobian(&self.geometry(), &poses))
-    }
+    r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
 /// Fit the geometry to `data`, starting from `start` (the nominal machine). Refuses pose sets that cannot
@@ -382,32 +252,24 @@ pub fn identify(data: &[Measurement], start: &ScaraGeometry) -> Result<Identific
     if !before.is_identifiable() {
         return Err(ScaraError::Unidentifiable(before.describe()));
     }
-    let problem = FitProblem {
-        data,
-        params: DVector::from_row_slice(&start.to_array()),
+    let jacobian = |v: &[f64]| {
+        stacked_jacobian(
+            &ScaraGeometry::from_array(std::array::from_fn(|k| v[k])),
+            &poses,
+        )
     };
-    let (solved, report) = LevenbergMarquardt::new()
-        .with_patience(200)
-        .minimize(problem);
-    if !report.termination.was_successful() {
-        return Err(ScaraError::NoConvergence(format!(
-            "{:?}",
-            report.termination
-        )));
-    }
-    let g = solved.geometry();
-    let residual = solved
-        .residuals()
+    let residuals = |v: &[f64]| residuals_at(data, v);
+    let solved = crate::lsq::minimise(&start.to_array(), &residuals, &jacobian)
+        .map_err(ScaraError::NoConvergence)?;
+    let g = ScaraGeometry::from_array(std::array::from_fn(|k| solved[k]));
+    let residual = residuals_at(data, &solved)
         .ok_or_else(|| ScaraError::NoConvergence("non-finite residuals".into()))?;
     let j = stacked_jacobian(&g, &poses);
     let identifiability = analyse_poses(&g, &poses);
-    let dof = (residual.len() as f64 - 7.0).max(1.0);
-    let sigma2 = residual.norm_squared() / dof;
-    let inv = (j.transpose() * &j)
-        .try_inverse()
+    let cov = crate::lsq::covariance(&j, &residual)
         .ok_or_else(|| ScaraError::Unidentifiable(identifiability.describe()))?;
     let covariance: Vec<[f64; 7]> = (0..7)
-        .map(|a| std::array::from_fn(|b| sigma2 * inv[(a, b)]))
+        .map(|a| std::array::from_fn(|b| cov[(a, b)]))
         .collect();
     let sigma = std::array::from_fn(|k| covariance[k][k].max(0.0).sqrt());
     let residuals = (0..data.len())
@@ -457,16 +319,7 @@ pub fn identify_in_frame(
     Ok(fit)
 }
 
-/// The measurements with their x and y exchanged (an X-SCARA's frame, or swapped columns).
-pub(crate) fn swapped_xy(data: &[Measurement]) -> Vec<Measurement> {
-    data.iter()
-        .map(|m| Measurement {
-            x: m.y,
-            y: m.x,
-            ..*m
-        })
-        .collect()
-}
+pub(crate) use crate::verdict::swapped_xy;
 
 /// The geometry with its offsets exchanged (between the printer's X/Y and the X-SCARA arm frame).
 pub(crate) fn swap_offsets(g: &ScaraGeometry) -> ScaraGeometry {
@@ -512,23 +365,10 @@ pub fn suggest_poses(
         .iter()
         .map(|p| info(std::slice::from_ref(p)))
         .collect();
-    let scale =
-        cand_info.iter().map(|m| m.trace()).sum::<f64>() / (7.0 * candidates.len().max(1) as f64);
-    let mut m = info(current) + DMatrix::identity(7, 7) * (1e-6 * scale.max(1e-12));
-    let mut chosen = Vec::new();
-    let mut used = vec![false; candidates.len()];
-    for _ in 0..count {
-        let best = (0..candidates.len())
-            .filter(|&i| !used[i])
-            .map(|i| (i, (&m + &cand_info[i]).determinant()))
-            .filter(|(_, d)| d.is_finite())
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((i, _)) = best else { break };
-        used[i] = true;
-        m += &cand_info[i];
-        chosen.push(candidates[i]);
-    }
-    chosen
+    crate::lsq::greedy_d_optimal(info(current), &cand_info, count)
+        .into_iter()
+        .map(|i| candidates[i])
+        .collect()
 }
 
 #[cfg(test)]
@@ -570,13 +410,22 @@ mod tests {
                 }
             })
             .collect();
-        let mut problem = FitProblem {
-            data: &data,
+        let residuals = |v: &[f64]| residuals_at(&data, v);
+        let poses: Vec<(f64, f64)> = data.iter().map(|m| (m.motor_a, m.motor_b)).collect();
+        let jacobian = |v: &[f64]| {
+            stacked_jacobian(
+                &ScaraGeometry::from_array(std::array::from_fn(|k| v[k])),
+                &poses,
+            )
+        };
+        let mut problem = crate::lsq::Problem {
             params: DVector::from_row_slice(&g.to_array()),
+            residuals: &residuals,
+            jacobian: &jacobian,
         };
         let numeric =
             levenberg_marquardt::differentiate_numerically(&mut problem).expect("numeric");
-        let analytic = problem.jacobian().expect("analytic");
+        let analytic = jacobian(&g.to_array());
         assert!((numeric - analytic).amax() < 1e-5);
     }
 }

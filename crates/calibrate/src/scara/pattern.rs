@@ -139,7 +139,7 @@ pub enum PatternError {
 }
 
 /// Fixed-decimal number without `-0.000`.
-fn num(v: f64) -> String {
+pub(crate) fn num(v: f64) -> String {
     let s = format!("{v:.3}");
     if s.trim_start_matches('-')
         .chars()
@@ -152,7 +152,7 @@ fn num(v: f64) -> String {
 }
 
 /// `v` as the G-code writes it and the firmware reads it back (3 decimals).
-fn written(v: f64) -> f64 {
+pub(crate) fn written(v: f64) -> f64 {
     (v * 1000.0).round() / 1000.0
 }
 
@@ -164,7 +164,7 @@ struct Candidate {
 }
 
 /// The strokes of a cross at `c` of half-size `h` as written: horizontal, the travel between, vertical.
-fn strokes(c: [f64; 2], h: f64, z: f64) -> [(Vec3, Vec3); 3] {
+pub(crate) fn strokes(c: [f64; 2], h: f64, z: f64) -> [(Vec3, Vec3); 3] {
     let (x0, x1) = (written(c[0] - h), written(c[0] + h));
     let (y0, y1) = (written(c[1] - h), written(c[1] + h));
     [

@@ -1,8 +1,10 @@
 //! Integration tests of the calibrate crate: circle fits against closed forms, the centre scan on the
-//! simulated Hall-sensor printer, and SCARA identification on simulated measurements.
+//! simulated Hall-sensor printer, and SCARA and five-bar identification on
+//! simulated measurements.
 
 mod centre_scan;
 mod circle_fits;
+mod fivebar_pattern;
 mod scan_render;
 mod scara_ident;
 mod scara_pattern;

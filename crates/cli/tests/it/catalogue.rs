@@ -6,9 +6,10 @@
 //! `expect.txt` holds `key: value` lines (`#` starts a comment):
 //! - `command`: `run` (default; with `--steps out/steps --moves out/moves.csv`), `check`, `stats`,
 //!   `convert` (with `-o out/converted.gcode`) or `calibrate-scan` (`calibrate scara --image FILE --dpi 600`, with
-//!   `-o out/scara.json --plot out/found.png`);
+//!   `-o out/scara.json --plot out/found.png`) or `calibrate-fivebar` (`calibrate fivebar --measurements FILE`,
+//!   with `-o out/fivebar.json --corrected out/fixed.cfg`);
 //! - `exit`: the expected exit code (`1` for every error; `0` for the documented cases that only warn);
-//! - `machine`: `cartesian`/`polar`/`scara` (an example machine) or a file name in the case folder; without
+//! - `machine`: `cartesian`/`polar`/`scara`/`fivebar` (an example machine) or a file name in the case folder; without
 //!   it, the case's `printer.cfg` if it has one, else the example Cartesian machine;
 //! - `file`: the G-code argument (default `input.gcode`); `stdin: yes` pipes `input.gcode` through `-`;
 //! - `generate`: `long-line` or `many-lines`, inputs too big to store, written at test time;
@@ -128,7 +129,7 @@ fn run_case(case: &Path) -> Result<(), String> {
     std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
 
     let config = match expect.machine.as_deref() {
-        Some(name @ ("cartesian" | "polar" | "scara")) => example_machine(name),
+        Some(name @ ("cartesian" | "polar" | "scara" | "fivebar")) => example_machine(name),
         Some(file) => PathBuf::from(file),
         None if work.join("printer.cfg").exists() => PathBuf::from("printer.cfg"),
         None => example_machine("cartesian"),
@@ -165,6 +166,12 @@ fn run_case(case: &Path) -> Result<(), String> {
                 .args(["--image", &input, "--dpi", "600", "-o"])
                 .arg(out.join("scara.json"));
             command.arg("--plot").arg(out.join("found.png"));
+        }
+        "calibrate-fivebar" => {
+            command.args(["calibrate", "fivebar", "-c"]).arg(&config);
+            command.args(["--measurements", &input, "-o"]);
+            command.arg(out.join("fivebar.json"));
+            command.arg("--corrected").arg(out.join("fixed.cfg"));
         }
         other => return Err(format!("unknown command `{other}`")),
     }

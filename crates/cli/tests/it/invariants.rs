@@ -98,6 +98,7 @@ fn kind_switch(line: &str) -> bool {
         "MachineParams::Polar",
         "MachineParams::Scara",
         "MachineParams::Cartesian",
+        "MachineParams::Fivebar",
     ]
     .iter()
     .any(|k| line.contains(k))

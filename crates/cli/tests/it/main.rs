@@ -9,6 +9,7 @@ mod common;
 mod determinism;
 mod estimate;
 mod fivebar;
+mod fivebar_calibration;
 mod fuzz_regressions;
 mod host;
 mod includes;

@@ -148,3 +148,57 @@ fn a_scara_is_corrected_from_its_printed_pattern() {
     let text = std::fs::read_to_string(dir.path().join("report/report.txt")).expect("report.txt");
     assert!(text.contains("0.02 mm noise (1σ per coordinate), read to 0.01 mm"));
 }
+
+/// A five-bar built with its right base 0.4 mm off, the left distal link 0.3 mm long and the right zero at −0.4°,
+/// configured as the example: the report's circle is measured, the correction is the five-bar's identification
+/// from its printed pattern (trustworthy), and the assembly error left is within 0.03 mm.
+#[test]
+fn a_fivebar_is_corrected_from_its_printed_pattern() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let text = std::fs::read_to_string(example_machine("fivebar")).expect("example config");
+    std::fs::write(dir.path().join("believed.cfg"), &text).expect("believed");
+    let errors = "right_base_x: 50.4\nleft_distal_length: 200.3\nright_zero: -0.4";
+    let actual = format!("{text}\n[printer]\n{errors}\n");
+    std::fs::write(dir.path().join("actual.cfg"), actual).expect("actual");
+    let mut gcode = String::from("G28\nM83\nG1 X20 Y40 Z0.3 F3000\n");
+    for k in 1..=72 {
+        let t = std::f64::consts::TAU * f64::from(k) / 72.0;
+        gcode += &format!(
+            "G1 X{:.3} Y{:.3} E0.06 F1200\n",
+            20.0 * t.cos(),
+            40.0 + 20.0 * t.sin()
+        );
+    }
+    std::fs::write(dir.path().join("line.gcode"), gcode).expect("gcode");
+    let output = simulate_correct(dir.path());
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let json = report_json(dir.path());
+    let method = json["correction"]["method"].as_str().expect("method");
+    assert!(method.starts_with("five-bar identification"), "{method}");
+    assert!(
+        json["correction"]["notes"]
+            .to_string()
+            .contains(": trustworthy")
+    );
+    let error = |run: &str| {
+        json[run]["deposited"]["max_model_error"]
+            .as_f64()
+            .expect(run)
+    };
+    assert!(
+        error("before") > 0.5 && error("after") < 0.03,
+        "{} → {}",
+        error("before"),
+        error("after")
+    );
+    assert!(
+        json["before"]["circles"]
+            .as_array()
+            .is_some_and(|c| !c.is_empty()),
+        "{json}"
+    );
+}

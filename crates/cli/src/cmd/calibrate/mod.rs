@@ -1,6 +1,8 @@
 //! `jointspace calibrate`: the polar bed's rotation centre from a Hall-sensor magnet scan (simulated or logged),
-//! and SCARA arm geometry from measured nozzle positions or from a flatbed scan of the printed pattern (`scan`).
+//! SCARA arm geometry from measured nozzle positions or from a flatbed scan of the printed pattern (`scan`), and a
+//! five-bar's geometry from its measured pattern (`fivebar`).
 
+mod fivebar;
 mod scan;
 
 use crate::magnets::{SimulatedBed, draw_magnet_map, simulate_scan};
@@ -21,6 +23,10 @@ pub enum Command {
     Scara(ScaraArgs),
     /// Write the G-code of a SCARA calibration pattern (crosses at well-chosen motor poses) to print and measure.
     ScaraPattern(PatternArgs),
+    /// Identify a five-bar's base positions, link lengths and motor zeros from its measured pattern.
+    Fivebar(fivebar::FitArgs),
+    /// Write the G-code of a five-bar calibration pattern and the measurements file to fill in.
+    FivebarPattern(fivebar::PatternArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -159,6 +165,8 @@ pub fn run(command: Command) -> miette::Result<ExitCode> {
         Command::Centre(args) => centre(args),
         Command::Scara(args) => scara_fit(args),
         Command::ScaraPattern(args) => pattern(args),
+        Command::Fivebar(args) => fivebar::fit(args),
+        Command::FivebarPattern(args) => fivebar::pattern(args),
     }
 }
 
@@ -314,7 +322,7 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         );
     } else {
         let mut text = report::scara_fit(&fit, data.len());
-        text += &report::scara_verdict(&verdict, data);
+        text += &report::fit_verdict(&verdict, data);
         if !crate::output::is_stdio(&args.out) {
             let _ = writeln!(text, "  result written to {}", args.out.display());
         }
@@ -332,9 +340,13 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
 
 /// The measuring noise (mm): `--noise`, else the method's (`fallback` when none is given).
 fn noise_of(args: &ScaraArgs, fallback: Method) -> miette::Result<f64> {
-    let noise = args
-        .noise
-        .unwrap_or_else(|| scara::MeasuringMethod::from(args.method.unwrap_or(fallback)).noise());
+    noise_from(args.noise, args.method, fallback)
+}
+
+/// The measuring noise (mm) from `--noise` or `--method` (`fallback` when neither is given).
+fn noise_from(noise: Option<f64>, method: Option<Method>, fallback: Method) -> miette::Result<f64> {
+    let noise =
+        noise.unwrap_or_else(|| scara::MeasuringMethod::from(method.unwrap_or(fallback)).noise());
     if !(noise.is_finite() && noise > 0.0) {
         miette::bail!("--noise must be a positive number of mm, not {noise}");
     }

@@ -37,7 +37,7 @@ pub(super) fn scara_scan(args: &ScaraArgs, image_path: &Path) -> miette::Result<
         );
     } else {
         let mut text = scan_report(&cal, &start, &name, &scale);
-        text += &crate::report::scara_verdict(&verdict, &cal.fit.measurements);
+        text += &crate::report::fit_verdict(&verdict, &cal.fit.measurements);
         if !crate::output::is_stdio(&args.out) {
             let _ = writeln!(text, "  result written to {}", args.out.display());
         }

@@ -2,7 +2,7 @@
 //! Klipper would call (through the callback pointer in the allocated struct) against the closed forms of
 //! REFERENCE.md §2, finite output for any input, and the whole-move checks.
 
-use std::f64::consts::PI;
+use std::f64::consts::{PI, TAU};
 use std::ffi::{CStr, CString, c_char};
 
 use jointspace_klipper::abi::{Move, StepperKinematics};
@@ -152,6 +152,41 @@ fn scara_follows_the_fekt_closed_form() {
     }
 }
 
+/// Each base joint of the five-bar follows the tests' own circle–circle inverse (`fivebar_reference`) over a grid
+/// of the workspace, keeps its reading's whole turns, and holds the commanded reading where the point has no pose.
+#[test]
+fn fivebar_joints_follow_the_circle_intersections() {
+    use crate::fivebar_reference::{SIDES, angle};
+    let m = Owned(machine("fivebar", ""));
+    let joints = [
+        Stepper::new(m.0, "stepper_left"),
+        Stepper::new(m.0, "stepper_right"),
+    ];
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for i in -30..=30 {
+        for j in -40..=30 {
+            let n = [5.0 * f64::from(i), 5.0 * f64::from(j)];
+            for (k, joint) in joints.iter().enumerate() {
+                let near = [2.4, 0.8][k];
+                let got = joint.at([n[0], n[1], 0.0], near);
+                match angle(&SIDES[k], n, near) {
+                    Some(expected) => {
+                        worst = worst.max((got - expected).abs());
+                        checked += 1;
+                        // A reading whole turns away keeps its turns.
+                        let turned = joint.at([n[0], n[1], 0.0], near + 2.0 * TAU);
+                        assert!((turned - (expected + 2.0 * TAU)).abs() < 1e-9, "{n:?}");
+                    }
+                    None => assert_eq!(got, near, "{n:?}: no pose, the reading holds"),
+                }
+            }
+        }
+    }
+    println!("five-bar joints: {checked} readings, largest difference {worst:e} rad");
+    assert!(checked > 3000, "{checked}");
+    assert!(worst < 1e-12, "largest difference {worst} rad");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
     /// Whatever move Klipper hands over (unreachable points, the exact centre, huge or non-finite values), the
@@ -167,10 +202,12 @@ proptest! {
         let polar = Owned(machine("polar", "arm_lateral_offset: 0.5"));
         let ideal = Owned(machine("polar", ""));
         let scara = Owned(machine("scara", ""));
+        let fivebar = Owned(machine("fivebar", ""));
         let m = Move { print_time: 0.0, move_t: 2.0, start_v: v, half_accel: 0.0, start_pos: start, axes_r: dir };
         for (machine, motor) in [(&polar, "stepper_bed"), (&polar, "stepper_arm"), (&ideal, "stepper_bed"),
                                  (&ideal, "stepper_arm"), (&scara, "stepper_a"), (&scara, "stepper_b"),
-                                 (&scara, "stepper_z")] {
+                                 (&scara, "stepper_z"), (&fivebar, "stepper_left"),
+                                 (&fivebar, "stepper_right")] {
             let s = Stepper::new(machine.0, motor);
             let p = s.on(&m, t, commanded);
             prop_assert!(p.is_finite(), "{motor}: {p}");
@@ -267,7 +304,21 @@ fn the_machine_answers_its_printer_keys() {
     assert_eq!(value(scara, "arm_zero_offset"), None);
     assert_eq!(value(scara, "max_velocity"), None);
     assert_eq!(value(std::ptr::null_mut(), "max_z_accel"), None);
-    for m in [polar, scara] {
+    let fivebar = machine("fivebar", "");
+    for (key, expected) in [
+        ("left_base_x", Some(-50.0)),
+        ("left_base_y", Some(-200.0)),
+        ("right_base_x", Some(50.0)),
+        ("right_proximal_length", Some(150.0)),
+        ("left_distal_length", Some(200.0)),
+        ("right_distal_length", Some(200.0)),
+        ("left_zero", None),
+        ("link1_length", None),
+        ("right_", None),
+    ] {
+        assert_eq!(value(fivebar, key), expected, "{key}");
+    }
+    for m in [polar, scara, fivebar] {
         // SAFETY: made above, freed once.
         unsafe { jointspace_machine_free(m) };
     }

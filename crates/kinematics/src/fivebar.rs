@@ -462,8 +462,9 @@ impl Kinematics for Fivebar {
         crate::SolverGeometry::Fivebar(self.geometry)
     }
 
-    /// The base joints have no one-motor closed form here: step generation uses the bracketed solver over
-    /// [`Kinematics::inverse_near`], exact to its time tolerance.
+    /// Each base joint's angle is a closed form of the position alone ([`FivebarSide::angle`], which the Klipper
+    /// plug-in's solvers follow), but stepgen has no one-motor solver for it yet: step generation uses the bracketed
+    /// solver over [`Kinematics::inverse_near`], exact to its time tolerance.
     fn motor_map(&self, motor: usize) -> MotorMap {
         match motor {
             Z => MotorMap::Linear {

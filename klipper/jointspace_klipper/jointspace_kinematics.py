@@ -7,9 +7,9 @@
 # version. See LICENSE in this folder.
 #
 # What Klipper's toolhead calls on a kinematics: the steppers, each with its motor's solver from the machine,
-# positions, homing (SCARA and five-bar joints, the polar arm and a polar bed with an endstop home in joint space), the checks
-# and speed caps of every move, and the status. The machine (jointspace_library.Machine) knows the geometry; these
-# classes read no geometry key of their own.
+# positions, homing (SCARA and five-bar joints, the polar arm and a polar bed with an endstop home in joint space),
+# the checks and speed caps of every move, and the status. The machine (jointspace_library.Machine) knows the
+# geometry; these classes read no geometry key of their own.
 import contextlib
 import inspect
 import math

@@ -31,11 +31,6 @@ pub fn example_config(dir: &Path, name: &str, replace: &[(&str, &str)], extra: &
     write(dir, name, &(text + extra))
 }
 
-/// The nozzle after homing to the example's endstops (left 150°, right 30°), by the tests' own forward kinematics.
-fn endstop_pose() -> [f64; 2] {
-    nozzle([150f64.to_radians(), 30f64.to_radians()]).expect("the endstops' pose")
-}
-
 /// The `toolhead: X:… Y:…` of GET_POSITION, as numbers.
 fn reported_xy(run: &Run) -> [f64; 2] {
     let line = run
@@ -142,7 +137,9 @@ fn a_slicer_file_prints_on_the_fivebar_in_klipper_and_kalico() {
 }
 
 /// G28 runs the left joint to its endstop, then the right one, each alone in joint space, and the nozzle is where
-/// the tests' forward kinematics puts the endstop angles; the move after homing steps along the reference path.
+/// the tests' forward kinematics puts the joints' readings: the endstops' 150° and 30° in Klipper, 5° back from each
+/// in Kalico (its final retract, `homing_retract_dist` in degrees); the moves after homing step along the reference
+/// path from there.
 #[test]
 fn the_fivebar_homes_each_joint_to_its_endstop() {
     let Some(hosts) = Hosts::get("the_fivebar_homes_each_joint_to_its_endstop") else {
@@ -155,37 +152,68 @@ fn the_fivebar_homes_each_joint_to_its_endstop() {
         "home.gcode",
         "G28\nGET_POSITION\nG4 P2000\nG1 X40 Y60 F3000\nG1 X-70 Y20\nM400\n",
     );
-    let home = endstop_pose();
-    let run = hosts.batch(KLIPPER, true, &config, &input, &dir.path().join("out"));
-    let steps = arm_steps(&run);
-    assert!(run.success, "{}", tail(&run.log, 30));
-    let end = homing_end(&steps);
-    // Joint space: the left joint homes alone (150° − 60° at most, from its far limit), then the right one.
-    let left_last = steps[0]
-        .iter()
-        .rev()
-        .find(|s| s.0 <= end)
-        .expect("left homing")
-        .0;
-    assert!(
-        left_last < steps[1][0].0,
-        "the left joint still moved when the right one started"
-    );
-    for (k, stream) in steps.iter().enumerate() {
-        let homing = stream.iter().filter(|s| s.0 <= end).count();
-        assert!(homing > 4000, "{}: {homing} homing steps", MOTORS[k]);
+    for (host, readings) in [(KLIPPER, [150.0, 30.0]), (KALICO, [145.0, 35.0])] {
+        let run = hosts.batch(host, true, &config, &input, &dir.path().join(host));
+        let steps = arm_steps(&run);
+        assert!(run.success, "{host}: {}", tail(&run.log, 30));
+        let end = homing_end(&steps);
+        // Joint space: the left joint homes alone (from its far limit, 90° away), then the right one.
+        let left_last = steps[0]
+            .iter()
+            .rev()
+            .find(|s| s.0 <= end)
+            .expect("left homing")
+            .0;
+        assert!(
+            left_last < steps[1][0].0,
+            "{host}: the left joint still moved when the right one started"
+        );
+        for (k, stream) in steps.iter().enumerate() {
+            let homing = stream.iter().filter(|s| s.0 <= end).count();
+            assert!(
+                homing > 4000,
+                "{host}: {}: {homing} homing steps",
+                MOTORS[k]
+            );
+        }
+        let read = reported_readings(&run);
+        for k in 0..2 {
+            assert!(
+                (read[k].to_degrees() - readings[k]).abs() < 1e-4,
+                "{host}: {} reads {}°",
+                MOTORS[k],
+                read[k].to_degrees()
+            );
+        }
+        let home = nozzle(readings.map(f64::to_radians)).expect("the homed pose");
+        let reported = reported_xy(&run);
+        assert!(
+            (reported[0] - home[0]).abs() < 1e-5 && (reported[1] - home[1]).abs() < 1e-5,
+            "{host}: homed at {reported:?}, the readings' pose is {home:?}"
+        );
+        audit_arms(
+            &format!("after homing on {host}"),
+            &run,
+            end,
+            &[reported, [40.0, 60.0], [-70.0, 20.0]],
+        );
     }
-    let reported = reported_xy(&run);
-    assert!(
-        (reported[0] - home[0]).abs() < 1e-6 && (reported[1] - home[1]).abs() < 1e-6,
-        "homed at {reported:?}, the endstops' pose is {home:?}"
-    );
-    audit_arms(
-        "after homing",
-        &run,
-        end,
-        &[home, [40.0, 60.0], [-70.0, 20.0]],
-    );
+}
+
+/// The joints' readings (rad) GET_POSITION reports (`stepper: stepper_left:… stepper_right:…`).
+fn reported_readings(run: &Run) -> [f64; 2] {
+    let line = run
+        .log
+        .lines()
+        .find(|l| l.starts_with("stepper:"))
+        .unwrap_or_else(|| panic!("no GET_POSITION line:\n{}", tail(&run.log, 20)));
+    MOTORS.map(|m| {
+        let rest = line.split_once(&format!("{m}:")).expect(m).1;
+        rest.split_whitespace()
+            .next()
+            .and_then(|v| v.parse().ok())
+            .expect("a number")
+    })
 }
 
 /// With `home_position` G28 declares the pose without moving; the status Mainsail shows holds the joint readings
@@ -260,7 +288,7 @@ fn the_fivebar_declares_its_home_and_shows_its_joints() {
 
 /// Moves the machine cannot make are refused at their line with the reason, and move nothing: beyond the left
 /// arm's reach, into the parallel band (the distal links in line), and through the left arm's folded reach (over its
-/// base joint: refused where it enters the arm's folded band). In batch mode the host exits at the first error,
+/// base joint). In batch mode the host exits at the first error,
 /// dropping steps not yet generated, so each refusal ends its own run, after the moves before it have been stepped
 /// (SET_KINEMATIC_POSITION flushes step generation): the stream after homing is exactly their path, and the motors
 /// end where it ends.
@@ -293,7 +321,7 @@ fn refused_fivebar_moves_move_nothing() {
             &[[0.0, -170.0]],
             "G1 X-100 Y-230",
             "Move out of range: X-100.000 Y-230.000 Z",
-            "((-4.620, -172.772) is too close to the left arm's singular pose, straight or folded",
+            "(passes 0.000 mm from the left base joint, inside its folded reach of 50 mm)",
         ),
     ];
     for host in [KLIPPER, KALICO] {

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Install jointspace's kinematics (jointspace_polar, jointspace_scara) into a Klipper or Kalico host.
+# Install jointspace's kinematics (jointspace_polar, jointspace_scara, jointspace_fivebar) into a Klipper or Kalico
+# host.
 # usage: klipper/install.sh [--host-dir DIR] [--venv DIR] [--wheel PATH] [--uninstall]
 #        klipper/install.sh --dev [--no-build] [--host-dir DIR] [--uninstall]
 #   --host-dir DIR  the Klipper or Kalico checkout (default: ~/klipper)
@@ -12,9 +13,9 @@
 #   --no-build      developer mode without the build (the library must already be built)
 # Package mode: pip installs jointspace-klipper (the Python modules and libjointspace_klipper.so) into the
 # virtualenv, then copies its loader to klippy/extras/jointspace.py (Kalico: klippy/plugins/, never both) and the
-# stand-ins to klippy/kinematics/jointspace_{polar,scara}.py. The files install puts into the host tree are listed in
-# a marked block of the tree's own .git/info/exclude so Moonraker does not report the repository as dirty (only when
-# DIR is the top level of its own git repository). A file of the same name that install did not put there (not a
+# stand-ins to klippy/kinematics/jointspace_{polar,scara,fivebar}.py. The files install puts into the host tree are
+# listed in a marked block of the tree's own .git/info/exclude so Moonraker does not report the repository as dirty
+# (only when DIR is the top level of its own git repository). A file of the same name that install did not put there (not a
 # link to this folder, no install.sh marker line) is never replaced or removed.
 set -euo pipefail
 HERE=$(cd -- "$(dirname -- "$0")" && pwd -P)
@@ -57,7 +58,7 @@ MODULES=(jointspace.py jointspace_library.py jointspace_kinematics.py jointspace
          jointspace_scan.py)
 # The kinematics names, for a printer.cfg without [jointspace]: a clear error saying to add it (with the section,
 # jointspace.py registers the real kinematics first and these files are never imported).
-KINEMATICS=(jointspace_polar.py jointspace_scara.py)
+KINEMATICS=(jointspace_polar.py jointspace_scara.py jointspace_fivebar.py)
 # LINKS[i] in the host tree links to (developer mode) or is a copy of SOURCES[i].
 LINKS=()
 SOURCES=()

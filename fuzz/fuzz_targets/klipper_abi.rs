@@ -2,8 +2,8 @@
 //!
 //! A machine from one of `klipper/examples/` (its `[printer]` and `[stepper_*]` sections, as the plug-in hands them
 //! over) with fuzz-chosen key values, absurd numbers included; then moves whose ends are biased to the poses where
-//! the geometry degenerates (the polar centre, the SCARA's straight and folded arm, at 0..1e-3 mm from them) or are
-//! huge, tiny and non-finite: `check_move`, `move_waypoints`, `junction_speed`, `inverse`/`forward`,
+//! the geometry degenerates (the polar centre, the SCARA's straight and folded arm, the five-bar's arms straight and
+//! folded, at 0..1e-3 mm from them) or are huge, tiny and non-finite: `check_move`, `move_waypoints`, `junction_speed`, `inverse`/`forward`,
 //! `reach_margin`, and every motor's step solver as Klipper's itersolve calls it.
 //!
 //! A crash is any panic, even one the library catches (libfuzzer-sys's panic hook aborts on every panic), a NaN or
@@ -20,6 +20,40 @@ use libfuzzer_sys::fuzz_target;
 
 const POLAR: &str = include_str!("../../klipper/examples/polar.cfg");
 const SCARA: &str = include_str!("../../klipper/examples/scara.cfg");
+const FIVEBAR: &str = include_str!("../../klipper/examples/fivebar.cfg");
+
+/// Which example machine a run drives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Example {
+    Polar,
+    Scara,
+    Fivebar,
+}
+
+impl Example {
+    fn config(self) -> &'static str {
+        match self {
+            Example::Polar => POLAR,
+            Example::Scara => SCARA,
+            Example::Fivebar => FIVEBAR,
+        }
+    }
+
+    /// The centres and radii of the circles its special poses lie on (the polar centre; the SCARA's straight arm;
+    /// each five-bar side straight and folded about its base joint, as in `klipper/examples/fivebar.cfg`).
+    fn special_circles(self) -> &'static [([f64; 2], f64)] {
+        match self {
+            Example::Polar => &[([0.0, 0.0], 0.0)],
+            Example::Scara => &[([0.0, 0.0], 0.0), ([0.0, 0.0], 200.0)],
+            Example::Fivebar => &[
+                ([-50.0, -200.0], 350.0),
+                ([-50.0, -200.0], 50.0),
+                ([50.0, -200.0], 350.0),
+                ([50.0, -200.0], 50.0),
+            ],
+        }
+    }
+}
 
 /// Keys whose values are numbers (`[printer]` and stepper keys both examples read or might).
 const PRINTER_KEYS: &[&str] = &[
@@ -42,6 +76,16 @@ const PRINTER_KEYS: &[&str] = &[
     "max_angular_accel",
     "arm_zero_offset",
     "arm_lateral_offset",
+    "left_base_x",
+    "left_base_y",
+    "right_base_x",
+    "right_base_y",
+    "left_proximal_length",
+    "right_proximal_length",
+    "left_distal_length",
+    "right_distal_length",
+    "left_zero",
+    "right_zero",
 ];
 const STEPPER_KEYS: &[&str] = &[
     "position_endstop",
@@ -57,6 +101,8 @@ const STEPPERS: &[&str] = &[
     "stepper_arm",
     "stepper_a",
     "stepper_b",
+    "stepper_left",
+    "stepper_right",
     "stepper_z",
 ];
 
@@ -159,19 +205,16 @@ fn plugin_sections(text: &str) -> String {
 }
 
 /// A point near one of the special poses, or anywhere, or wild.
-fn point(u: &mut Unstructured, scara: bool) -> Result<[f64; 3]> {
+fn point(u: &mut Unstructured, machine: Example) -> Result<[f64; 3]> {
     const NEAR: [f64; 7] = [0.0, 1e-15, 1e-12, 1e-10, 1e-9, 1e-6, 1e-3];
     let z = if u.arbitrary()? { 1.0 } else { number(u)? };
     Ok(match u.int_in_range(0..=5)? {
         0..=2 => {
             let d = *u.choose(&NEAR)? * if u.arbitrary()? { 1.0 } else { -1.0 };
             let angle = f64::from(u.int_in_range(-3600..=3600)?) / 3600.0 * std::f64::consts::PI;
-            let r = if scara && u.arbitrary()? {
-                200.0 - d
-            } else {
-                d
-            };
-            [r * angle.cos(), r * angle.sin(), z]
+            let (centre, radius) = *u.choose(machine.special_circles())?;
+            let r = radius - d;
+            [centre[0] + r * angle.cos(), centre[1] + r * angle.sin(), z]
         }
         3 => [number(u)?, number(u)?, z],
         _ => [
@@ -183,7 +226,7 @@ fn point(u: &mut Unstructured, scara: bool) -> Result<[f64; 3]> {
 }
 
 /// The move's end: a short hop from `start` (1e-12..1e3 mm) or another point.
-fn end_from(u: &mut Unstructured, scara: bool, start: [f64; 3]) -> Result<[f64; 3]> {
+fn end_from(u: &mut Unstructured, machine: Example, start: [f64; 3]) -> Result<[f64; 3]> {
     if u.arbitrary()? {
         let length = 10f64.powi(u.int_in_range(-12..=3)?);
         let mut end = start;
@@ -192,7 +235,7 @@ fn end_from(u: &mut Unstructured, scara: bool, start: [f64; 3]) -> Result<[f64; 
         }
         return Ok(end);
     }
-    point(u, scara)
+    point(u, machine)
 }
 
 fn reason(error: &[c_char]) -> String {
@@ -213,8 +256,8 @@ fuzz_target!(|data: &[u8]| {
 });
 
 fn run(u: &mut Unstructured) -> Result<()> {
-    let scara: bool = u.arbitrary()?;
-    let mut text = plugin_sections(if scara { SCARA } else { POLAR });
+    let machine = *u.choose(&[Example::Polar, Example::Scara, Example::Fivebar])?;
+    let mut text = plugin_sections(machine.config());
     for _ in 0..u.int_in_range(0..=4)? {
         let value = value(u)?;
         text = if u.arbitrary()? {
@@ -233,14 +276,14 @@ fn run(u: &mut Unstructured) -> Result<()> {
         refusal_is_clean("machine_new", &error);
         return Ok(());
     }
-    let result = drive(u, m, scara);
+    let result = drive(u, m, machine);
     // SAFETY: from jointspace_machine_new, freed once.
     unsafe { jointspace_machine_free(m) };
     result
 }
 
 /// What the plug-in asks of a machine: its keys and motors, solvers, then moves.
-fn drive(u: &mut Unstructured, m: *mut Machine, scara: bool) -> Result<()> {
+fn drive(u: &mut Unstructured, m: *mut Machine, machine: Example) -> Result<()> {
     // SAFETY: the machine lives until the caller frees it; the returned strings live as long.
     let keys = unsafe { CStr::from_ptr(jointspace_machine_read_keys(m)) };
     assert!(!keys.to_bytes().is_empty());
@@ -256,7 +299,7 @@ fn drive(u: &mut Unstructured, m: *mut Machine, scara: bool) -> Result<()> {
         assert!(!sk.is_null(), "no solver for motor {i}");
         solvers.push(sk);
     }
-    let outcome = moves(u, m, scara, &solvers);
+    let outcome = moves(u, m, machine, &solvers);
     for sk in solvers {
         // SAFETY: calloc'd by the library; Klipper frees it with free.
         unsafe { libc::free(sk.cast()) };
@@ -267,17 +310,17 @@ fn drive(u: &mut Unstructured, m: *mut Machine, scara: bool) -> Result<()> {
 fn moves(
     u: &mut Unstructured,
     m: *mut Machine,
-    scara: bool,
+    machine: Example,
     solvers: &[*mut jointspace_klipper::abi::StepperKinematics],
 ) -> Result<()> {
-    let mut start = point(u, scara)?;
+    let mut start = point(u, machine)?;
     for _ in 0..u.int_in_range(1..=6)? {
-        let end = end_from(u, scara, start)?;
+        let end = end_from(u, machine, start)?;
         let speed = if u.arbitrary()? { 150.0 } else { number(u)? };
         let accel = if u.arbitrary()? { 2000.0 } else { number(u)? };
         check_move(m, start, end, speed, accel);
         waypoints(m, start, end, speed, accel, number(u)?);
-        let next = end_from(u, scara, end)?;
+        let next = end_from(u, machine, end)?;
         let points = [start, end, next].concat();
         // SAFETY: nine doubles.
         let v = unsafe { jointspace_junction_speed(m, points.as_ptr(), accel, number(u)?) };

@@ -1,4 +1,4 @@
-# jointspace kinematics for Klipper and Kalico: SCARA arms and polar printers
+# jointspace kinematics for Klipper and Kalico: SCARA arms, five-bar (parallel) SCARAs and polar printers
 #
 # Copyright (C) 2026  The jointspace developers
 #
@@ -6,14 +6,14 @@
 # version. See LICENSE in this folder.
 #
 # Loaded from a [jointspace] config section (klippy/extras/ on Klipper, klippy/plugins/ on Kalico: the loader of the
-# installed jointspace-klipper package, or from a source tree a link to this file), it
-# registers the kinematics "jointspace_polar" and "jointspace_scara" before [printer] imports them. The
-# machine itself (geometry, offsets, limits, reach) lives in libjointspace_klipper.so, built from the same
-# printer.cfg keys the jointspace command line reads; Klipper's itersolve calls that library for every step.
+# installed jointspace-klipper package, or from a source tree a link to this file), it registers the kinematics
+# "jointspace_polar", "jointspace_scara" and "jointspace_fivebar" before [printer] imports them. The machine itself
+# (geometry, offsets, limits, reach) lives in libjointspace_klipper.so, built from the same printer.cfg keys the
+# jointspace command line reads; Klipper's itersolve calls that library for every step.
 #
 # The plug-in's modules, all beside this file's real path:
 #   jointspace_library.py     the library: loading and its checks, the host's arithmetic, the Machine it builds
-#   jointspace_kinematics.py  Klipper's kinematics interface over that machine (polar, SCARA)
+#   jointspace_kinematics.py  Klipper's kinematics interface over that machine (polar, SCARA, five-bar)
 #   jointspace_splitter.py    MoveSplitter, the move transform wrapping the toolhead's move
 #   jointspace_commands.py    JOINTSPACE_SCARA_PATTERN
 #   jointspace_scan.py        JOINTSPACE_SCAN_CENTRE, the Hall-sensor centre scan
@@ -53,6 +53,10 @@ def load_kinematics_scara(toolhead, config):
     return kinematics.ScaraKinematics(toolhead, config, library.Machine(config))
 
 
+def load_kinematics_fivebar(toolhead, config):
+    return kinematics.FivebarKinematics(toolhead, config, library.Machine(config))
+
+
 def _register(name, loader):
     # As the module Klipper imports for `kinematics: NAME` (Kalico's package is klippy.kinematics).
     module = types.ModuleType(name)
@@ -72,6 +76,7 @@ class Jointspace:
         self.splitter = jointspace_splitter.MoveSplitter(config, kinematics.JointspaceKinematics)
         _register("jointspace_polar", load_kinematics_polar)
         _register("jointspace_scara", load_kinematics_scara)
+        _register("jointspace_fivebar", load_kinematics_fivebar)
         self.commands = jointspace_commands.JointspaceCommands(config)
         # The Hall-sensor centre scan, for a polar bed with magnets and a sensor on the arm.
         self.centre_scan = None

@@ -1,4 +1,5 @@
-# jointspace: Klipper's kinematics interface over the library's machine (jointspace_polar, jointspace_scara)
+# jointspace: Klipper's kinematics interface over the library's machine (jointspace_polar, jointspace_scara,
+# jointspace_fivebar)
 #
 # Copyright (C) 2026  The jointspace developers
 #
@@ -6,9 +7,9 @@
 # version. See LICENSE in this folder.
 #
 # What Klipper's toolhead calls on a kinematics: the steppers, each with its motor's solver from the machine,
-# positions, homing (SCARA joints, the polar arm and a polar bed with an endstop home in joint space), the checks
-# and speed caps of every move, and the status. The machine (jointspace_library.Machine) knows the geometry; these
-# classes read no geometry key of their own.
+# positions, homing (SCARA and five-bar joints, the polar arm and a polar bed with an endstop home in joint space),
+# the checks and speed caps of every move, and the status. The machine (jointspace_library.Machine) knows the
+# geometry; these classes read no geometry key of their own.
 import contextlib
 import inspect
 import math
@@ -39,7 +40,7 @@ def _rail(section, units_in_radians=False):
 
 
 class JointspaceKinematics:
-    """What Klipper's toolhead calls on a kinematics, shared by the polar and SCARA machines. Subclasses
+    """What Klipper's toolhead calls on a kinematics, shared by the polar, SCARA and five-bar machines. Subclasses
     create the steppers in Klipper's order and say how the XY joints home."""
 
     def __init__(self, toolhead, config, name, machine):
@@ -410,35 +411,38 @@ def _distance_to_centre(p1, p2):
     return abs(ab_x * ap_y - ab_y * ap_x) / length
 
 
-class ScaraKinematics(JointspaceKinematics):
-    """SCARA: shoulder motor (stepper_a), elbow motor (stepper_b, coupled to the shoulder), Z."""
+class JointArmKinematics(JointspaceKinematics):
+    """Arms whose two XY motors turn joints (SCARA, five-bar): each joint with an endstop homes to it in joint space,
+    one after the other, and the nozzle is where forward kinematics puts their readings; or [printer] home_position
+    declares the pose at G28 (FEKT-SCARA's homing). Subclasses name the joints, the keys of their offsets and their
+    XY bounds."""
 
-    joint_names = ("stepper_a", "stepper_b")
-    angle_motors = joint_names
     turning_motors = ()
 
-    def __init__(self, toolhead, config, machine):
-        JointspaceKinematics.__init__(self, toolhead, config, "jointspace_scara", machine)
+    def __init__(self, toolhead, config, name, machine):
+        JointspaceKinematics.__init__(self, toolhead, config, name, machine)
         self.home_position = self.machine.declared_home()
         joints = []
-        for name in self.joint_names:
-            section = config.getsection(name)
+        for joint in self.joint_names:
+            section = config.getsection(joint)
             if section.get("endstop_pin", None, note_valid=False) is not None:
                 joints.append(stepper.LookupMultiRail(section, units_in_radians=True))
-                self.joint_rails[name] = joints[-1]
+                self.joint_rails[joint] = joints[-1]
             elif self.home_position is not None:
-                # FEKT-SCARA's homing declares the pose: a joint needs no endstop.
+                # A declared pose: a joint needs no endstop.
                 joints.append(stepper.PrinterStepper(section, units_in_radians=True))
             else:
                 raise config.error(
-                    "jointspace_scara: [%s] needs endstop_pin (the joints home to endstops) "
-                    "or [printer] needs home_position (the pose homing declares)" % (name,))
+                    "%s: [%s] needs endstop_pin (the joints home to endstops) "
+                    "or [printer] needs home_position (the pose homing declares)" % (name, joint))
         self.rail_z = stepper.LookupMultiRail(config.getsection("stepper_z"))
-        self.offsets = {k: machine.value(k) for k in ("offset_x", "offset_y")}
-        reach = machine.value("link1_length") + machine.value("link2_length")
-        ox, oy = self.offsets["offset_x"], self.offsets["offset_y"]
+        self.offsets = {k: machine.value(k) for k in self.offset_keys}
         self._attach(toolhead, list(zip(self.joint_names, joints)) + [("stepper_z", self.rail_z)],
-                     ((ox - reach, oy - reach), (ox + reach, oy + reach)))
+                     self.xy_bounds())
+
+    @property
+    def angle_motors(self):
+        return self.joint_names
 
     def joint_scale(self, name):
         # While homing, the toolhead's X and Y are the joint readings in degrees (as position_endstop).
@@ -455,3 +459,41 @@ class ScaraKinematics(JointspaceKinematics):
         motors = [math.radians(joints[0]), math.radians(joints[1]), 0.]
         self.set_homed_pose(homing_state, self.machine.forward(motors))
 
+
+class ScaraKinematics(JointArmKinematics):
+    """SCARA: shoulder motor (stepper_a), elbow motor (stepper_b, coupled to the shoulder), Z."""
+
+    joint_names = ("stepper_a", "stepper_b")
+    offset_keys = ("offset_x", "offset_y")
+
+    def __init__(self, toolhead, config, machine):
+        JointArmKinematics.__init__(self, toolhead, config, "jointspace_scara", machine)
+
+    def xy_bounds(self):
+        # The square about the shoulder that holds the arm's reach.
+        reach = self.machine.value("link1_length") + self.machine.value("link2_length")
+        ox, oy = self.offsets["offset_x"], self.offsets["offset_y"]
+        return (ox - reach, oy - reach), (ox + reach, oy + reach)
+
+
+class FivebarKinematics(JointArmKinematics):
+    """Five-bar (parallel) SCARA: the left and right base joints (stepper_left, stepper_right), each turning a
+    proximal link, the distal links joined at the nozzle; Z."""
+
+    joint_names = ("stepper_left", "stepper_right")
+    offset_keys = ("left_base_x", "left_base_y", "right_base_x", "right_base_y")
+
+    def __init__(self, toolhead, config, machine):
+        JointArmKinematics.__init__(self, toolhead, config, "jointspace_fivebar", machine)
+
+    def xy_bounds(self):
+        # The nozzle is within each side's reach of its base joint: the overlap of the squares about both bases.
+        lows, highs = [], []
+        for side in ("left", "right"):
+            reach = (self.machine.value(side + "_proximal_length")
+                     + self.machine.value(side + "_distal_length"))
+            base = (self.offsets[side + "_base_x"], self.offsets[side + "_base_y"])
+            lows.append([c - reach for c in base])
+            highs.append([c + reach for c in base])
+        return ((max(lows[0][0], lows[1][0]), max(lows[0][1], lows[1][1])),
+                (min(highs[0][0], highs[1][0]), min(highs[0][1], highs[1][1])))

@@ -6,8 +6,8 @@
 # version. See LICENSE in this folder.
 #
 # jointspace-klipper: written by install.sh
-# install.sh copies (or, from a source tree, links) this file as klippy/kinematics/jointspace_polar.py and
-# jointspace_scara.py; --uninstall removes the copies, found by the line above. Klipper imports it only when
+# install.sh copies (or, from a source tree, links) this file as klippy/kinematics/jointspace_polar.py,
+# jointspace_scara.py and jointspace_fivebar.py; --uninstall removes the copies, found by the line above. Klipper imports it only when
 # printer.cfg names one of those kinematics and has no [jointspace] section: that section loads jointspace.py, which
 # registers the real kinematics before [printer] imports them.
 

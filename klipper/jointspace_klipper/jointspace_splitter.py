@@ -14,8 +14,8 @@ class MoveSplitter:
     """The toolhead's move, wrapped. It checks each move whole before any part of it is queued (a refused move
     moves nothing), turns a polar bed in place on a circle of the centre's tolerance where a move passes through the
     centre or leaves it in a new direction, ends a move that ends within that circle on the centre itself, and (with
-    cut_spans) cuts each move where jointspace's planner limits change (near the polar centre, SCARA singular poses,
-    step-rate limits), so check_move caps only the pieces that need it. G-code transforms (bed_mesh,
+    cut_spans) cuts each move where jointspace's planner limits change (near the polar centre, SCARA and five-bar
+    singular poses, step-rate limits), so check_move caps only the pieces that need it. G-code transforms (bed_mesh,
     skew_correction...) come first, as they end in the toolhead's move."""
 
     def __init__(self, config, kinematics_type):

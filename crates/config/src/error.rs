@@ -68,7 +68,7 @@ pub enum ConfigError {
     },
 
     #[error(
-        "{span}: unsupported kinematics '{name}' (supported: cartesian, polar, scara, jointspace_polar, jointspace_scara)"
+        "{span}: unsupported kinematics '{name}' (supported: cartesian, polar, scara, fivebar, jointspace_polar, jointspace_scara, jointspace_fivebar)"
     )]
     UnsupportedKinematics { span: Box<Span>, name: String },
 

@@ -314,7 +314,7 @@ fn read_kinematics_kind(printer: &Section) -> Result<KinematicsKind, ConfigError
         // The names the Klipper/Kalico plug-in registers, so one printer.cfg serves the printer and the CLI.
         "polar" | "jointspace_polar" => Ok(KinematicsKind::Polar),
         "scara" | "jointspace_scara" => Ok(KinematicsKind::Scara),
-        "fivebar" => Ok(KinematicsKind::Fivebar),
+        "fivebar" | "jointspace_fivebar" => Ok(KinematicsKind::Fivebar),
         _ => Err(ConfigError::UnsupportedKinematics {
             span: Box::new(
                 printer

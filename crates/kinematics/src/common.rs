@@ -234,8 +234,17 @@ impl Exempt {
 
     /// The stretches next to each end that lies in a band (`in_band(t)`), where the band is left monotonically on
     /// either side of `t_near` (the closest approach to the arm's axis: the distance from it is monotone there),
-    /// each found to [`SEGMENT_T_TOLERANCE`] by bisection.
+    /// each found to [`SEGMENT_T_TOLERANCE`] by bisection. Where the closest approach is an end itself (a line
+    /// heading straight for a folded arm's pose), the distance is monotone over the whole segment: that end's
+    /// stretch is looked for up to the other end.
     pub(crate) fn band_ends(in_band: impl Fn(f64) -> bool, t_near: f64) -> Exempt {
+        let towards = |end: f64| {
+            if (t_near - end).abs() <= SEGMENT_T_TOLERANCE {
+                1.0 - end
+            } else {
+                t_near
+            }
+        };
         let leaves = |mut inside: f64, mut outside: f64| {
             if in_band(outside) {
                 return outside;
@@ -252,12 +261,12 @@ impl Exempt {
         };
         Exempt {
             to: if in_band(0.0) {
-                leaves(0.0, t_near)
+                leaves(0.0, towards(0.0))
             } else {
                 -1.0
             },
             from: if in_band(1.0) {
-                leaves(1.0, t_near)
+                leaves(1.0, towards(1.0))
             } else {
                 2.0
             },

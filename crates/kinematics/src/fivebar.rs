@@ -22,9 +22,10 @@
 //! links turning the other way); the soft limits (margin, motor limits, Z) are applied by
 //! [`Kinematics::check_point`] / [`Kinematics::check_segment`].
 
+mod geometry;
 mod special_poses;
 
-use std::f64::consts::{PI, TAU};
+pub use geometry::{FivebarGeometry, FivebarSide, SideAngle};
 
 use crate::angle::unwrap_near;
 use crate::common::{
@@ -62,8 +63,8 @@ pub const PARALLEL_ROUNDING: f64 = 1e-9;
 pub struct Fivebar {
     params: FivebarParams,
     motors: Vec<Motor>,
-    /// Per side, the centre of the window `(c − π, c + π]` its angle is given in by [`Fivebar::pose`].
-    window: [f64; 2],
+    /// Each side's closed-form inverse, its angle in a window `(c − π, c + π]` (see [`window_centre`]).
+    geometry: FivebarGeometry,
 }
 
 /// One pose of the mechanism.
@@ -90,12 +91,6 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// `v` turned a quarter counter-clockwise.
 fn perp(v: [f64; 2]) -> [f64; 2] {
     [-v[1], v[0]]
-}
-
-/// Angle in `(c − π, c + π]`.
-fn within(angle: f64, c: f64) -> f64 {
-    let d = (angle - c).rem_euclid(TAU);
-    if d > PI { c + d - TAU } else { c + d }
 }
 
 impl Fivebar {
@@ -128,14 +123,24 @@ impl Fivebar {
             motor_from(&params.right.stepper, MotorUnit::Rad)?,
             motor_from(&params.z, MotorUnit::Mm)?,
         ];
-        let window = [
-            window_centre(&params.left, params.right.base),
-            window_centre(&params.right, params.left.base),
-        ];
+        let geometry = FivebarGeometry {
+            sides: [
+                FivebarSide::new(
+                    LEFT,
+                    &params.left,
+                    window_centre(&params.left, params.right.base),
+                ),
+                FivebarSide::new(
+                    RIGHT,
+                    &params.right,
+                    window_centre(&params.right, params.left.base),
+                ),
+            ],
+        };
         Ok(Self {
             params,
             motors,
-            window,
+            geometry,
         })
     }
 
@@ -169,34 +174,17 @@ impl Fivebar {
         ((mid - span).max(0.0).sqrt(), (mid + span).sqrt())
     }
 
+    /// The closed-form geometry of both sides (each base joint's angle from the nozzle's position alone).
+    pub fn geometry(&self) -> FivebarGeometry {
+        self.geometry
+    }
+
     /// Side `k`'s angle, elbow and |sin| for the nozzle at `(x, y)` on its configured branch.
     fn side(&self, side: usize, x: f64, y: f64) -> Result<(f64, [f64; 2], f64), ReachError> {
-        let arm = self.arm(side);
-        let (p, d_len) = (arm.proximal, arm.distal);
-        let (u, v) = (x - arm.base[0], y - arm.base[1]);
-        let d = u.hypot(v);
-        let (min, max) = ((p - d_len).abs(), p + d_len);
-        let refused = ReachError::ArmReach {
-            arm: SIDES[side],
-            x,
-            y,
-            distance: d,
-            min,
-            max,
-        };
-        if d - max > REACH_ROUNDING || min - d > REACH_ROUNDING || d == 0.0 {
-            return Err(refused);
-        }
-        // The angle at the base between base → nozzle and base → elbow (law of cosines).
-        let cos_b = ((p * p + d * d - d_len * d_len) / (2.0 * p * d)).clamp(-1.0, 1.0);
-        if cos_b.is_nan() {
-            return Err(ReachError::NotFinite);
-        }
-        let beta = cos_b.acos();
-        // Counter-clockwise turn base → elbow → nozzle: the elbow lies clockwise of the base → nozzle line.
-        let theta = within(v.atan2(u) - arm.turn.sign() * beta, self.window[side]);
-        let elbow = [arm.base[0] + p * theta.cos(), arm.base[1] + p * theta.sin()];
-        Ok((theta, elbow, (d * beta.sin() / d_len).min(1.0)))
+        let geometry = &self.geometry.sides[side];
+        let angle = geometry.angle(x, y)?;
+        let (elbow, sin) = geometry.elbow_and_sin(&angle);
+        Ok((angle.theta, elbow, sin))
     }
 
     /// The pose for the nozzle at `(x, y)` in the working mode.
@@ -471,8 +459,13 @@ impl Kinematics for Fivebar {
         &self.motors
     }
 
-    /// The base joints have no one-motor closed form here: step generation uses the bracketed solver over
-    /// [`Kinematics::inverse_near`], exact to its time tolerance.
+    fn solver_geometry(&self) -> crate::SolverGeometry {
+        crate::SolverGeometry::Fivebar(self.geometry)
+    }
+
+    /// Each base joint's angle is a closed form of the position alone ([`FivebarSide::angle`], which the Klipper
+    /// plug-in's solvers follow), but stepgen has no one-motor solver for it yet: step generation uses the bracketed
+    /// solver over [`Kinematics::inverse_near`], exact to its time tolerance.
     fn motor_map(&self, motor: usize) -> MotorMap {
         match motor {
             Z => MotorMap::Linear {

@@ -237,6 +237,8 @@ pub enum SolverGeometry {
     Linear,
     Polar(polar::PolarGeometry),
     Scara(scara::ScaraGeometry),
+    /// A five-bar: each base joint's angle from the nozzle's position alone ([`fivebar::FivebarSide::angle`]).
+    Fivebar(fivebar::FivebarGeometry),
 }
 
 /// `value` with three decimals, or as many more as it takes not to read as `limit` (a refusal never shows the

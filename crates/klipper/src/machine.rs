@@ -130,6 +130,12 @@ impl Machine {
                 kinematics::scara::ELBOW => Solver::ScaraElbow(geometry),
                 _ => return None,
             },
+            (_, SolverGeometry::Fivebar(geometry)) => match index {
+                kinematics::fivebar::LEFT | kinematics::fivebar::RIGHT => {
+                    Solver::FivebarJoint(geometry.sides[index])
+                }
+                _ => return None,
+            },
             _ => return None,
         };
         Some(solver)
@@ -292,9 +298,10 @@ impl Machine {
     }
 
     /// The value the machine was built with for one of its `[printer]` keys the plug-in needs (a polar arm's
-    /// `arm_zero_offset`, `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`; any
-    /// machine's `max_z_velocity`, `max_z_accel`), so the plug-in never reads one a second time; `None` for a key this
-    /// machine does not have.
+    /// `arm_zero_offset`, `arm_lateral_offset`; a SCARA's `link1_length`, `link2_length`, `offset_x`, `offset_y`; a
+    /// five-bar's `{left,right}_base_{x,y}`, `{left,right}_{proximal,distal}_length`; any machine's
+    /// `max_z_velocity`, `max_z_accel`), so the plug-in never reads one a second time; `None` for a key this machine
+    /// does not have.
     pub fn printer_value(&self, key: &str) -> Option<f64> {
         let planner = &self.machine.setup.planner;
         match (&self.machine.config.params, key) {
@@ -306,8 +313,25 @@ impl Machine {
             (MachineParams::Scara(s), "link2_length") => Some(s.link2_length),
             (MachineParams::Scara(s), "offset_x") => Some(s.offset_x),
             (MachineParams::Scara(s), "offset_y") => Some(s.offset_y),
+            (MachineParams::Fivebar(f), key) => fivebar_value(f, key),
             _ => None,
         }
+    }
+}
+
+/// A five-bar's `[printer]` value by key: `left_` or `right_` and the arm's own key.
+fn fivebar_value(params: &kinematics::FivebarParams, key: &str) -> Option<f64> {
+    let (arm, rest) = if let Some(rest) = key.strip_prefix("left_") {
+        (&params.left, rest)
+    } else {
+        (&params.right, key.strip_prefix("right_")?)
+    };
+    match rest {
+        "base_x" => Some(arm.base[0]),
+        "base_y" => Some(arm.base[1]),
+        "proximal_length" => Some(arm.proximal),
+        "distal_length" => Some(arm.distal),
+        _ => None,
     }
 }
 

@@ -7,6 +7,7 @@
 
 use std::f64::consts::{PI, TAU};
 
+use kinematics::fivebar::FivebarSide;
 use kinematics::polar::PolarGeometry;
 use kinematics::scara::ScaraGeometry;
 use kinematics::{CENTRE_DIRECTION_RADIUS, RADIAL_ROUNDING, unwrap_near};
@@ -34,6 +35,8 @@ pub enum Solver {
     ScaraShoulder(ScaraGeometry),
     /// SCARA elbow motor (`stepper_b`), coupled to the shoulder angle.
     ScaraElbow(ScaraGeometry),
+    /// One base joint of a five-bar (`stepper_left`, `stepper_right`): its angle from the nozzle's position alone.
+    FivebarJoint(FivebarSide),
 }
 
 impl Solver {
@@ -66,6 +69,11 @@ impl Solver {
             Solver::ScaraElbow(g) => g
                 .joints(x, y)
                 .map_or(commanded, |j| g.motors_from_joints(j).1),
+            // The side's closed form gives the angle in its window; the reading keeps its whole turns (a range
+            // wider than a turn, or a homing reading outside the window, stays continuous).
+            Solver::FivebarJoint(side) => side
+                .motor(x, y)
+                .map_or(commanded, |motor| unwrap_near(motor, commanded)),
         };
         if position.is_finite() {
             position

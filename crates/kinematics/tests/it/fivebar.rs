@@ -417,6 +417,14 @@ fn serial_bands_rest_and_reach_errors() {
     assert_eq!(kin.check_segment(a, b), Ok(()));
     assert_eq!(kin.check_segment(b, a), Ok(()));
     assert!(inner < outer);
+    // Straight at the base joint into the folded band (the closest approach is the end itself): resting there is
+    // allowed both ways; going on through the band and out of it is not.
+    let (c, d) = (at(120.0), at(0.5 * (50.0 + inner)));
+    assert!(kin.rests_at(d) && !kin.rests_at(c));
+    assert_eq!(kin.check_segment(c, d), Ok(()));
+    assert_eq!(kin.check_segment(d, c), Ok(()));
+    let through = [-50.0 - 60.0 * dir[0], -60.0 * dir[1], 0.0];
+    assert!(kin.check_segment(c, through).is_err());
     let mut m = [0.0; 3];
     assert!(matches!(
         kin.inverse([0.0, 600.0, 0.0], &mut m),

@@ -245,3 +245,48 @@ fn polar_print_with_offsets_matches_the_engine() {
         dir.path(),
     );
 }
+
+/// The five-bar: a slicer's part (KISSlicer's cube about the origin, 361 s) from a declared pose. The plug-in's
+/// solvers follow each base joint's closed form; jointspace's engine steps the same joints with its bracketed solver
+/// over the whole inverse. (A part whose motor idles over 2³² ticks, 268 s, cannot be compared: the step files
+/// decoded from the host's 32-bit MCU clocks lose those turns of the clock.)
+#[test]
+fn fivebar_print_matches_the_engine() {
+    let corpus = shared().join("corpus");
+    if !corpus.is_dir() {
+        assert!(
+            std::env::var_os("JOINTSPACE_REQUIRE_SHARED").is_none(),
+            "the shared corpus is absent, and JOINTSPACE_REQUIRE_SHARED says it must be there (CI)"
+        );
+        println!("fivebar_print_matches_the_engine: skipped: the shared corpus is absent");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = crate::fivebar::example_config(
+        dir.path(),
+        "printer.cfg",
+        // The part is sliced for 255 °C and lines up to 12 mm² in cross-section.
+        &[
+            (
+                "max_extrude_cross_section: 1.0",
+                "max_extrude_cross_section: 12",
+            ),
+            ("max_temp: 250", "max_temp: 300"),
+        ],
+        "\n[force_move]\nenable_force_move: True\n",
+    );
+    let part = std::fs::read_to_string(corpus.join("kisslicer-1.1_cube-centred.gcode"))
+        .expect("corpus file");
+    let gcode = crate::hosts::write(
+        dir.path(),
+        "part.gcode",
+        &format!("SET_KINEMATIC_POSITION X=0 Y=0 Z=0.3\n{part}\nM400\n"),
+    );
+    compare_with_engine(
+        "fivebar_print_matches_the_engine",
+        &config,
+        [0.0, 0.0, 0.3],
+        &gcode,
+        dir.path(),
+    );
+}

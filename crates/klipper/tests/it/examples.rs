@@ -8,6 +8,8 @@ use crate::engine::run_jointspace;
 use crate::hosts::{Hosts, KALICO, KLIPPER, workspace_root, write};
 
 const POLAR_CIRCLE: &str = "G28\nG90\nM83\nG1 Z0.3 F600\nG1 X50 Y0 F6000\nG2 X50 Y0 I-50 J0 E10 F3000\nG1 X20 Y5 F6000\nG1 X-20 Y5 E2\nM400\n";
+/// From the endstops' pose (0, −37.6): a circle of 40 mm about (0, 40), a line back.
+const FIVEBAR_CIRCLE: &str = "G28\nG90\nM83\nG1 Z0.3 F600\nG1 X40 Y40 F6000\nG2 X40 Y40 I-40 J0 E5 F3000\nG1 X-40 Y0 E2\nM400\n";
 const SCARA_CIRCLE: &str = "G28\nG90\nM83\nG1 Z0.3 F600\nG1 X20 Y130 F6000\nG2 X20 Y130 I-20 J0 E5 F3000\nG1 X-40 Y100 E2\nM400\n";
 
 fn example(name: &str, gcode: &str) {
@@ -51,4 +53,9 @@ fn polar_example_prints_in_both_hosts() {
 #[test]
 fn scara_example_prints_in_both_hosts() {
     example("scara", SCARA_CIRCLE);
+}
+
+#[test]
+fn fivebar_example_prints_in_both_hosts() {
+    example("fivebar", FIVEBAR_CIRCLE);
 }

@@ -2,7 +2,7 @@
 //! Klipper would call (through the callback pointer in the allocated struct) against the closed forms of
 //! REFERENCE.md §2, finite output for any input, and the whole-move checks.
 
-use std::f64::consts::PI;
+use std::f64::consts::{PI, TAU};
 use std::ffi::{CStr, CString, c_char};
 
 use jointspace_klipper::abi::{Move, StepperKinematics};
@@ -152,6 +152,41 @@ fn scara_follows_the_fekt_closed_form() {
     }
 }
 
+/// Each base joint of the five-bar follows the tests' own circle–circle inverse (`fivebar_reference`) over a grid
+/// of the workspace, keeps its reading's whole turns, and holds the commanded reading where the point has no pose.
+#[test]
+fn fivebar_joints_follow_the_circle_intersections() {
+    use crate::fivebar_reference::{SIDES, angle};
+    let m = Owned(machine("fivebar", ""));
+    let joints = [
+        Stepper::new(m.0, "stepper_left"),
+        Stepper::new(m.0, "stepper_right"),
+    ];
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for i in -30..=30 {
+        for j in -40..=30 {
+            let n = [5.0 * f64::from(i), 5.0 * f64::from(j)];
+            for (k, joint) in joints.iter().enumerate() {
+                let near = [2.4, 0.8][k];
+                let got = joint.at([n[0], n[1], 0.0], near);
+                match angle(&SIDES[k], n, near) {
+                    Some(expected) => {
+                        worst = worst.max((got - expected).abs());
+                        checked += 1;
+                        // A reading whole turns away keeps its turns.
+                        let turned = joint.at([n[0], n[1], 0.0], near + 2.0 * TAU);
+                        assert!((turned - (expected + 2.0 * TAU)).abs() < 1e-9, "{n:?}");
+                    }
+                    None => assert_eq!(got, near, "{n:?}: no pose, the reading holds"),
+                }
+            }
+        }
+    }
+    println!("five-bar joints: {checked} readings, largest difference {worst:e} rad");
+    assert!(checked > 3000, "{checked}");
+    assert!(worst < 1e-12, "largest difference {worst} rad");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
     /// Whatever move Klipper hands over (unreachable points, the exact centre, huge or non-finite values), the
@@ -167,10 +202,12 @@ proptest! {
         let polar = Owned(machine("polar", "arm_lateral_offset: 0.5"));
         let ideal = Owned(machine("polar", ""));
         let scara = Owned(machine("scara", ""));
+        let fivebar = Owned(machine("fivebar", ""));
         let m = Move { print_time: 0.0, move_t: 2.0, start_v: v, half_accel: 0.0, start_pos: start, axes_r: dir };
         for (machine, motor) in [(&polar, "stepper_bed"), (&polar, "stepper_arm"), (&ideal, "stepper_bed"),
                                  (&ideal, "stepper_arm"), (&scara, "stepper_a"), (&scara, "stepper_b"),
-                                 (&scara, "stepper_z")] {
+                                 (&scara, "stepper_z"), (&fivebar, "stepper_left"),
+                                 (&fivebar, "stepper_right")] {
             let s = Stepper::new(machine.0, motor);
             let p = s.on(&m, t, commanded);
             prop_assert!(p.is_finite(), "{motor}: {p}");
@@ -267,7 +304,21 @@ fn the_machine_answers_its_printer_keys() {
     assert_eq!(value(scara, "arm_zero_offset"), None);
     assert_eq!(value(scara, "max_velocity"), None);
     assert_eq!(value(std::ptr::null_mut(), "max_z_accel"), None);
-    for m in [polar, scara] {
+    let fivebar = machine("fivebar", "");
+    for (key, expected) in [
+        ("left_base_x", Some(-50.0)),
+        ("left_base_y", Some(-200.0)),
+        ("right_base_x", Some(50.0)),
+        ("right_proximal_length", Some(150.0)),
+        ("left_distal_length", Some(200.0)),
+        ("right_distal_length", Some(200.0)),
+        ("left_zero", None),
+        ("link1_length", None),
+        ("right_", None),
+    ] {
+        assert_eq!(value(fivebar, key), expected, "{key}");
+    }
+    for m in [polar, scara, fivebar] {
         // SAFETY: made above, freed once.
         unsafe { jointspace_machine_free(m) };
     }
@@ -647,13 +698,14 @@ fn caps_are_positive_or_the_move_is_refused() {
     }
 }
 
-/// The two example machines, built once and shared by every case (a machine is immutable, its answers reentrant);
+/// The example machines, built once and shared by every case (a machine is immutable, its answers reentrant);
 /// never freed, they live as long as the test binary.
-fn shared_examples() -> [&'static Owned; 2] {
-    static MACHINES: std::sync::OnceLock<[usize; 2]> = std::sync::OnceLock::new();
-    let addresses = MACHINES.get_or_init(|| {
-        ["polar", "scara"].map(|name| Box::into_raw(Box::new(example(name))) as usize)
-    });
+const KINDS: [&str; 3] = ["polar", "scara", "fivebar"];
+
+fn shared_examples() -> [&'static Owned; 3] {
+    static MACHINES: std::sync::OnceLock<[usize; 3]> = std::sync::OnceLock::new();
+    let addresses =
+        MACHINES.get_or_init(|| KINDS.map(|name| Box::into_raw(Box::new(example(name))) as usize));
     // SAFETY: boxes leaked above, never freed or written.
     addresses.map(|a| unsafe { &*(a as *const Owned) })
 }
@@ -684,17 +736,36 @@ fn wild() -> impl Strategy<Value = f64> {
 /// Distances from a special pose (mm) where rounding and tolerances meet.
 const NEAR: [f64; 6] = [0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-3];
 
-/// A point near one of the machine's special poses: the polar centre; the SCARA's straight arm (full reach) or
-/// folded arm (its shoulder, with equal links), at `NEAR` distances inside or beside them.
-fn near_pose(scara: bool, which: usize, angle: f64, near: usize, beside: f64, z: f64) -> [f64; 3] {
+/// A point near one of the machine's special poses (`kind` indexes [`KINDS`]): the polar centre; the SCARA's
+/// straight arm (full reach) or folded arm (its shoulder, with equal links); the five-bar's left or right arm
+/// straight (350 mm from its base joint) or folded (50 mm); at `NEAR` distances inside or beside them.
+fn near_pose(kind: usize, which: usize, angle: f64, near: usize, beside: f64, z: f64) -> [f64; 3] {
     let d = NEAR[near % NEAR.len()];
     let (c, s) = (angle.cos(), angle.sin());
-    let r = if scara && which.is_multiple_of(2) {
-        200.0 - d
-    } else {
-        d
+    let (centre, r) = match kind {
+        1 if which.is_multiple_of(2) => ([0.0, 0.0], 200.0 - d),
+        2 => {
+            let base = if which < 2 {
+                [-50.0, -200.0]
+            } else {
+                [50.0, -200.0]
+            };
+            (
+                base,
+                if which.is_multiple_of(2) {
+                    350.0 - d
+                } else {
+                    50.0 + d
+                },
+            )
+        }
+        _ => ([0.0, 0.0], d),
     };
-    [r * c - beside * s * d, r * s + beside * c * d, z]
+    [
+        centre[0] + r * c - beside * s * d,
+        centre[1] + r * s + beside * c * d,
+        z,
+    ]
 }
 
 /// The move's end: along a direction by a length from 1e-12 to 1e3 mm, to another special point, or wild.
@@ -717,12 +788,12 @@ fn end_kind() -> impl Strategy<Value = EndKind> {
     prop_oneof![
         4 => (-12.0..3.0f64, -PI..PI, prop_oneof![Just(0.0), Just(PI / 2.0), -PI / 2.0..PI / 2.0])
             .prop_map(|(log_length, azimuth, elevation)| EndKind::Along { log_length, azimuth, elevation }),
-        2 => (0..2usize, -PI..PI, 0..6usize).prop_map(|(which, angle, near)| EndKind::Pose { which, angle, near }),
+        2 => (0..4usize, -PI..PI, 0..6usize).prop_map(|(which, angle, near)| EndKind::Pose { which, angle, near }),
         1 => prop::array::uniform3(prop_oneof![wild(), -300.0..300.0f64]).prop_map(EndKind::Wild),
     ]
 }
 
-fn end_of(kind: &EndKind, scara: bool, start: [f64; 3]) -> [f64; 3] {
+fn end_of(kind: &EndKind, machine: usize, start: [f64; 3]) -> [f64; 3] {
     match *kind {
         EndKind::Along {
             log_length,
@@ -737,7 +808,9 @@ fn end_of(kind: &EndKind, scara: bool, start: [f64; 3]) -> [f64; 3] {
             ];
             [0, 1, 2].map(|k| start[k] + length * dir[k])
         }
-        EndKind::Pose { which, angle, near } => near_pose(scara, which, angle, near, 0.0, start[2]),
+        EndKind::Pose { which, angle, near } => {
+            near_pose(machine, which, angle, near, 0.0, start[2])
+        }
         EndKind::Wild(p) => p,
     }
 }
@@ -817,13 +890,13 @@ fn previous_or(previous: *const f64, motors: &[f64; 3]) -> *const f64 {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(3000))]
     /// Whatever move a G-code line asks for near the poses where the geometry degenerates (the polar centre, the
-    /// SCARA's straight and folded arm), at lengths from 1e-12 to 1e3 mm, or with huge, tiny and non-finite
+    /// SCARA's and the five-bar's straight and folded arms), at lengths from 1e-12 to 1e3 mm, or with huge, tiny and non-finite
     /// numbers: no panic (caught or not), and every answer finite or a clean −1 with a reason.
     #[test]
     fn the_c_interface_answers_every_move_near_the_special_poses(
-        scara in any::<bool>(),
+        kind in 0..3usize,
         start_kind in 0..4usize,
-        (which, angle, near, beside) in (0..2usize, -PI..PI, 0..6usize, -1.0..1.0f64),
+        (which, angle, near, beside) in (0..4usize, -PI..PI, 0..6usize, -1.0..1.0f64),
         z in prop_oneof![Just(1.0), 0.0..200.0f64, wild()],
         wild_start in prop::array::uniform3(wild()),
         end in end_kind(),
@@ -833,17 +906,17 @@ proptest! {
         bed_angle in prop_oneof![-10.0..10.0f64, wild()],
         previous in prop::array::uniform3(prop_oneof![-7.0..7.0f64, wild()]),
     ) {
-        let m = shared_examples()[usize::from(scara)];
+        let m = shared_examples()[kind];
         let start = match start_kind {
-            0 | 1 => near_pose(scara, which, angle, near, beside, z),
+            0 | 1 => near_pose(kind, which, angle, near, beside, z),
             2 => wild_start,
             _ => [200.0 * beside, 200.0 * angle.sin(), z],
         };
-        let end = end_of(&end, scara, start);
-        let what = format!("{} {start:?} -> {end:?} at {speed}, {accel}", if scara { "scara" } else { "polar" });
+        let end = end_of(&end, kind, start);
+        let what = format!("{} {start:?} -> {end:?} at {speed}, {accel}", KINDS[kind]);
         assert_clean_check(&what, &check(m, start, end, speed, accel), speed, accel);
         assert_clean_waypoints(&what, &waypoints(m, start, end, speed, accel, bed_angle));
-        let next = end_of(&corner, scara, end);
+        let next = end_of(&corner, kind, end);
         let points = [start, end, next].concat();
         let v = without_panic("junction_speed", || {
             // SAFETY: nine doubles.

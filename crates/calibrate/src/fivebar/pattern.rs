@@ -20,7 +20,7 @@ use super::measurements::{CSV_HEADER, measurement_template};
 use super::model::FivebarGeometry;
 use crate::measured::degrees;
 use crate::scara::PatternOptions;
-use crate::scara::pattern::{num, strokes, written};
+use crate::scara::pattern::{CrossWriter, num, strokes, written};
 
 /// Grid lines each way over the box both arms reach.
 const GRID: usize = 40;
@@ -110,24 +110,10 @@ fn candidates(kin: &Fivebar, o: &PatternOptions) -> Vec<Candidate> {
 
 /// Checks the options a pattern is made with.
 fn check_options(o: &PatternOptions, count: usize) -> Result<(), FivebarError> {
-    let positive = [
-        ("cross size", o.cross_size),
-        ("layer height", o.layer_height),
-        ("extrusion per mm", o.extrusion_per_mm),
-        ("print speed", o.print_speed),
-        ("travel speed", o.travel_speed),
-    ];
-    if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
-        return Err(FivebarError::Pattern(format!(
-            "the pattern's {name} must be a positive number, not {v}"
-        )));
+    match o.problem(count, MIN_POSES, 10) {
+        Some(problem) => Err(FivebarError::Pattern(problem)),
+        None => Ok(()),
     }
-    if count < MIN_POSES {
-        return Err(FivebarError::Pattern(format!(
-            "a pattern needs at least {MIN_POSES} crosses (10 parameters), {count} asked"
-        )));
-    }
-    Ok(())
 }
 
 /// The calibration pattern of `count` crosses for this machine (fewer when fewer poses take a whole cross, but at
@@ -199,9 +185,7 @@ fn pattern_gcode(
     o: &PatternOptions,
 ) -> Result<String, FivebarError> {
     let mut s = String::new();
-    let (h, z) = (o.cross_size / 2.0, written(o.layer_height));
-    let e = num(o.cross_size * o.extrusion_per_mm);
-    let (fp, ft) = (num(o.print_speed * 60.0), num(o.travel_speed * 60.0));
+    let writer = CrossWriter::new(o);
     let _ = writeln!(
         s,
         "; jointspace five-bar calibration pattern: {} crosses of {} mm\n\
@@ -211,7 +195,7 @@ fn pattern_gcode(
         num(o.cross_size),
         CSV_HEADER.join(",")
     );
-    let _ = writeln!(s, "G21\nG90\nM83\nG28\nG1 Z{} F600", num(z));
+    writer.begin(&mut s);
     let mut last = start_of(kin, o.home);
     for (i, c) in crosses.iter().enumerate() {
         let _ = writeln!(
@@ -223,19 +207,15 @@ fn pattern_gcode(
             num(c.centre[0]),
             num(c.centre[1])
         );
-        let [(start, first), (_, second), (_, end)] = strokes(c.centre, h, z);
-        if let Some(from) = last {
-            for [vx, vy] in travel(kin, from, c.motors, start)? {
-                let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(vx), num(vy));
-            }
-        }
-        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(start[0]), num(start[1]));
-        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(first[0]), num(first[1]));
-        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(second[0]), num(second[1]));
-        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(end[0]), num(end[1]));
-        last = Some((end, c.motors));
+        let strokes = writer.strokes(c.centre);
+        let vias = match last {
+            Some(from) => travel(kin, from, c.motors, strokes[0].0)?,
+            None => Vec::new(),
+        };
+        writer.cross(&mut s, &vias, &strokes);
+        last = Some((strokes[2].1, c.motors));
     }
-    let _ = writeln!(s, "G1 Z{} F600\nM84", num(z + 5.0));
+    writer.finish(&mut s);
     Ok(s)
 }
 

@@ -53,6 +53,85 @@ pub struct PatternOptions {
     pub home: Option<Vec3>,
 }
 
+impl PatternOptions {
+    /// What is wrong with these options for a pattern of `count` crosses (at least `min_poses`, for a fit of
+    /// `parameters`), if anything.
+    pub(crate) fn problem(
+        &self,
+        count: usize,
+        min_poses: usize,
+        parameters: usize,
+    ) -> Option<String> {
+        let positive = [
+            ("cross size", self.cross_size),
+            ("layer height", self.layer_height),
+            ("extrusion per mm", self.extrusion_per_mm),
+            ("print speed", self.print_speed),
+            ("travel speed", self.travel_speed),
+        ];
+        if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+            return Some(format!(
+                "the pattern's {name} must be a positive number, not {v}"
+            ));
+        }
+        (count < min_poses).then(|| {
+            format!("a pattern needs at least {min_poses} crosses ({parameters} parameters), {count} asked")
+        })
+    }
+}
+
+/// How a pattern's crosses are written: the layer, each cross's strokes and the travels to them, as both pattern
+/// makers (SCARA, five-bar) write them.
+pub(crate) struct CrossWriter {
+    /// Half the cross size and the layer height as written (mm).
+    half: f64,
+    z: f64,
+    /// Filament per stroke and the print and travel feed rates, as written.
+    extrusion: String,
+    print_feed: String,
+    travel_feed: String,
+}
+
+impl CrossWriter {
+    pub(crate) fn new(o: &PatternOptions) -> Self {
+        CrossWriter {
+            half: o.cross_size / 2.0,
+            z: written(o.layer_height),
+            extrusion: num(o.cross_size * o.extrusion_per_mm),
+            print_feed: num(o.print_speed * 60.0),
+            travel_feed: num(o.travel_speed * 60.0),
+        }
+    }
+
+    /// Units, modes, homing and the first layer's height.
+    pub(crate) fn begin(&self, s: &mut String) {
+        let _ = writeln!(s, "G21\nG90\nM83\nG28\nG1 Z{} F600", num(self.z));
+    }
+
+    /// The strokes of the cross at `centre` (see [`strokes`]).
+    pub(crate) fn strokes(&self, centre: [f64; 2]) -> [(Vec3, Vec3); 3] {
+        strokes(centre, self.half, self.z)
+    }
+
+    /// The travel's via points to the cross, then its two strokes.
+    pub(crate) fn cross(&self, s: &mut String, vias: &[[f64; 2]], strokes: &[(Vec3, Vec3); 3]) {
+        let [(start, first), (_, second), (_, end)] = strokes;
+        let (e, fp, ft) = (&self.extrusion, &self.print_feed, &self.travel_feed);
+        for [vx, vy] in vias {
+            let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(*vx), num(*vy));
+        }
+        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(start[0]), num(start[1]));
+        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(first[0]), num(first[1]));
+        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(second[0]), num(second[1]));
+        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(end[0]), num(end[1]));
+    }
+
+    /// The nozzle lifted clear and the motors off.
+    pub(crate) fn finish(&self, s: &mut String) {
+        let _ = writeln!(s, "G1 Z{} F600\nM84", num(self.z + 5.0));
+    }
+}
+
 impl Default for PatternOptions {
     fn default() -> Self {
         Self {
@@ -215,24 +294,10 @@ fn candidates(kin: &Scara, o: &PatternOptions) -> Vec<Candidate> {
 
 /// Checks the options a pattern is made with.
 fn check_options(o: &PatternOptions, count: usize) -> Result<(), PatternError> {
-    let positive = [
-        ("cross size", o.cross_size),
-        ("layer height", o.layer_height),
-        ("extrusion per mm", o.extrusion_per_mm),
-        ("print speed", o.print_speed),
-        ("travel speed", o.travel_speed),
-    ];
-    if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
-        return Err(PatternError::Options(format!(
-            "the pattern's {name} must be a positive number, not {v}"
-        )));
+    match o.problem(count, MIN_POSES, 7) {
+        Some(problem) => Err(PatternError::Options(problem)),
+        None => Ok(()),
     }
-    if count < MIN_POSES {
-        return Err(PatternError::Options(format!(
-            "a pattern needs at least {MIN_POSES} crosses (7 parameters), {count} asked"
-        )));
-    }
-    Ok(())
 }
 
 /// The calibration pattern of `count` crosses for this machine (fewer when fewer poses take a whole cross, but at
@@ -347,9 +412,7 @@ fn pattern_gcode(
     o: &PatternOptions,
 ) -> Result<String, PatternError> {
     let mut s = String::new();
-    let (h, z) = (o.cross_size / 2.0, written(o.layer_height));
-    let e = num(o.cross_size * o.extrusion_per_mm);
-    let (fp, ft) = (num(o.print_speed * 60.0), num(o.travel_speed * 60.0));
+    let writer = CrossWriter::new(o);
     let _ = writeln!(
         s,
         "; jointspace SCARA calibration pattern: {} crosses of {} mm, frame {}",
@@ -363,7 +426,7 @@ fn pattern_gcode(
          ; angles; measure each cross centre on the bed and record: {}",
         CSV_HEADER.join(",")
     );
-    let _ = writeln!(s, "G21\nG90\nM83\nG28\nG1 Z{} F600", num(z));
+    writer.begin(&mut s);
     let mut last = start_of(kin, o.home);
     for (i, c) in crosses.iter().enumerate() {
         let [x, y] = c.centre;
@@ -376,22 +439,18 @@ fn pattern_gcode(
             num(x),
             num(y)
         );
-        let [(start, first), (_, second), (_, end)] = strokes(c.centre, h, z);
-        if let Some(from) = last {
-            for [vx, vy] in travel(kin, from, c.motors, start)? {
-                let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(vx), num(vy));
-            }
-        }
-        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(start[0]), num(start[1]));
-        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(first[0]), num(first[1]));
-        let _ = writeln!(s, "G0 X{} Y{} F{ft}", num(second[0]), num(second[1]));
-        let _ = writeln!(s, "G1 X{} Y{} E{e} F{fp}", num(end[0]), num(end[1]));
+        let strokes = writer.strokes(c.centre);
+        let vias = match last {
+            Some(from) => travel(kin, from, c.motors, strokes[0].0)?,
+            None => Vec::new(),
+        };
+        writer.cross(&mut s, &vias, &strokes);
         last = Some(Travelling {
-            at: end,
+            at: strokes[2].1,
             motors: c.motors,
         });
     }
-    let _ = writeln!(s, "G1 Z{} F600\nM84", num(z + 5.0));
+    writer.finish(&mut s);
     Ok(s)
 }
 

@@ -178,14 +178,7 @@ pub fn fit(args: FitArgs) -> miette::Result<ExitCode> {
         }
         crate::out!("{text}");
     }
-    if verdict.trustworthy {
-        return Ok(ExitCode::SUCCESS);
-    }
-    crate::errln!(
-        "error: {name}: the fit is not trustworthy: {}",
-        verdict.problems.join("; ")
-    );
-    Ok(ExitCode::FAILURE)
+    Ok(super::judged(&name, &verdict))
 }
 
 /// What the result file holds: the keys, their σ, the identifiability in both frames, the verdict.

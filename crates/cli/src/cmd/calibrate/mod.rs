@@ -328,14 +328,19 @@ fn scara_fit(args: ScaraArgs) -> miette::Result<ExitCode> {
         }
         crate::out!("{text}");
     }
+    Ok(judged(&name, &verdict))
+}
+
+/// A fit's exit status: success when it is trustworthy, else its problems on standard error and exit 1.
+fn judged(name: &str, verdict: &calibrate::verdict::Verdict) -> ExitCode {
     if verdict.trustworthy {
-        return Ok(ExitCode::SUCCESS);
+        return ExitCode::SUCCESS;
     }
     crate::errln!(
         "error: {name}: the fit is not trustworthy: {}",
         verdict.problems.join("; ")
     );
-    Ok(ExitCode::FAILURE)
+    ExitCode::FAILURE
 }
 
 /// The measuring noise (mm): `--noise`, else the method's (`fallback` when none is given).

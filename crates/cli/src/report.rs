@@ -270,14 +270,10 @@ pub fn scara_fit(fit: &Identification, measurements: usize) -> String {
         id.condition_number
     );
     for combination in &id.unidentifiable {
-        let terms: Vec<String> = combination
-            .iter()
-            .map(|(n, w)| format!("{w:+.2}·{n}"))
-            .collect();
         let _ = writeln!(
             text,
             "  not identifiable from these poses: {}",
-            terms.join(" ")
+            combination_text(combination)
         );
     }
     text
@@ -397,15 +393,20 @@ pub fn fivebar_fit(fit: &calibrate::fivebar::Identification, measurements: usize
         id.condition_number
     );
     for combination in &fit.free_frame.unidentifiable {
-        let terms: Vec<String> = combination
-            .iter()
-            .map(|(n, w)| format!("{w:+.2}·{n}"))
-            .collect();
         let _ = writeln!(
             text,
             "  measured relative to each other only (no bed frame), not identified: {}",
-            terms.join(" ")
+            combination_text(combination)
         );
     }
     text
+}
+
+/// A parameter combination the data cannot determine, as `+0.71·a −0.71·b`.
+fn combination_text<N: std::fmt::Display>(combination: &[(N, f64)]) -> String {
+    let terms: Vec<String> = combination
+        .iter()
+        .map(|(n, w)| format!("{w:+.2}·{n}"))
+        .collect();
+    terms.join(" ")
 }

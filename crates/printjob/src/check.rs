@@ -152,7 +152,7 @@ pub fn check_gcode(
         .sort_by_key(|p| (p.span.line, p.span.column));
     report.end_time = end_time;
     report.slow_moves = slow.total;
-    report.envelope = sink.envelope;
+    report.envelope = sink.into_envelope();
     report
 }
 

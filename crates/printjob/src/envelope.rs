@@ -45,9 +45,10 @@ pub(crate) struct EnvelopeSink<'a> {
     previous: Vec<f64>,
     readings: Vec<f64>,
     clearances: Vec<Clearance>,
-    pub(crate) envelope: Envelope,
-    /// Which motors' travel is reported.
+    /// Per motor in the machine's order: whether its travel is reported, and the travel so far.
     tracked: Vec<bool>,
+    travel: Vec<Option<MotorTravel>>,
+    closest: Vec<ClosestApproach>,
 }
 
 impl<'a> EnvelopeSink<'a> {
@@ -65,8 +66,17 @@ impl<'a> EnvelopeSink<'a> {
             previous: vec![f64::NAN; count],
             readings: vec![0.0; count],
             clearances: Vec::new(),
-            envelope: Envelope::default(),
             tracked,
+            travel: vec![None; count],
+            closest: Vec::new(),
+        }
+    }
+
+    /// What the planned moves asked of the machine.
+    pub(crate) fn into_envelope(self) -> Envelope {
+        Envelope {
+            motors: self.travel.into_iter().flatten().collect(),
+            closest: self.closest,
         }
     }
 
@@ -82,56 +92,51 @@ impl<'a> EnvelopeSink<'a> {
         self.clearances.clear();
         self.kin.clearances(p, &mut self.clearances);
         for c in &self.clearances {
-            self.envelope.note_clearance(c, self.origin, [p[0], p[1]]);
+            note_clearance(&mut self.closest, c, self.origin, [p[0], p[1]]);
         }
     }
 
     fn note_readings(&mut self) {
         let line = self.origin;
         let motors = self.kin.motors().iter().zip(&self.readings);
-        for ((motor, &value), _) in motors.zip(&self.tracked).filter(|(_, t)| **t) {
-            let travel = match self
-                .envelope
-                .motors
-                .iter_mut()
-                .find(|t| t.name == motor.name)
-            {
-                Some(travel) => travel,
+        let tracked = motors.zip(&mut self.travel).zip(&self.tracked);
+        for ((motor, &value), travel) in tracked.filter(|(_, t)| **t).map(|(m, _)| m) {
+            match travel {
+                Some(t) => {
+                    if value < t.min {
+                        (t.min, t.min_line) = (value, line);
+                    }
+                    if value > t.max {
+                        (t.max, t.max_line) = (value, line);
+                    }
+                }
                 None => {
-                    self.envelope.motors.push(MotorTravel {
+                    *travel = Some(MotorTravel {
                         name: motor.name.clone(),
                         unit: motor.unit,
                         min: value,
                         min_line: line,
                         max: value,
                         max_line: line,
-                    });
-                    continue;
+                    })
                 }
-            };
-            if value < travel.min {
-                (travel.min, travel.min_line) = (value, line);
-            }
-            if value > travel.max {
-                (travel.max, travel.max_line) = (value, line);
             }
         }
     }
 }
 
-impl Envelope {
-    fn note_clearance(&mut self, c: &Clearance, line: u64, at: [f64; 2]) {
-        match self.closest.iter_mut().find(|a| a.label == c.label) {
-            Some(a) if c.value < a.value => (a.value, a.line, a.at) = (c.value, line, at),
-            Some(_) => {}
-            None => self.closest.push(ClosestApproach {
-                label: c.label,
-                value: c.value,
-                margin: c.margin,
-                line,
-                at,
-            }),
-        }
+/// Keeps the smallest clearance of each special pose, with its line and place.
+fn note_clearance(closest: &mut Vec<ClosestApproach>, c: &Clearance, line: u64, at: [f64; 2]) {
+    match closest.iter_mut().find(|a| a.label == c.label) {
+        Some(a) if c.value < a.value => (a.value, a.line, a.at) = (c.value, line, at),
+        Some(_) => {}
+        None => closest.push(ClosestApproach {
+            label: c.label,
+            value: c.value,
+            margin: c.margin,
+            line,
+            at,
+        }),
     }
 }
 

@@ -45,22 +45,13 @@ pub fn print_and_measure(
     measuring: Measuring,
     rng: &mut impl Rng,
 ) -> Result<MeasuredPattern, SimulationError> {
-    let machine = ::machine::Machine::from_config(believed.clone(), "believed machine")?;
+    let (machine, options) = believed_machine(believed)?;
     let scara = Scara::of(machine.setup.kinematics.as_ref()).ok_or_else(|| {
         SimulationError::Calibration("the believed machine is not a SCARA".into())
     })?;
-    let options = PatternOptions {
-        home: machine.setup.home_position,
-        ..PatternOptions::default()
-    };
-    let pattern = machine_pattern(scara, calibrate::scara::DEFAULT_POSES, &options)
-        .map_err(|e| SimulationError::Calibration(format!("calibration pattern: {e}")))?;
-    let printed = Printed {
-        gcode: &pattern.gcode,
-        poses: &pattern.poses,
-        centres: &pattern.centres,
-        half: options.cross_size / 2.0,
-    };
+    let pattern =
+        machine_pattern(scara, calibrate::scara::DEFAULT_POSES, &options).map_err(pattern_error)?;
+    let printed = Printed::of(&pattern.gcode, &pattern.poses, &pattern.centres, &options);
     let data = measure_printed(believed, actual, &printed, measuring, rng)?;
     Ok(MeasuredPattern { pattern, data })
 }
@@ -74,6 +65,39 @@ pub struct Printed<'a> {
     pub half: f64,
 }
 
+impl<'a> Printed<'a> {
+    fn of(
+        gcode: &'a str,
+        poses: &'a [(f64, f64)],
+        centres: &'a [[f64; 2]],
+        options: &PatternOptions,
+    ) -> Self {
+        Printed {
+            gcode,
+            poses,
+            centres,
+            half: options.cross_size / 2.0,
+        }
+    }
+}
+
+/// The believed machine, built as every front-end builds it, and the default pattern options from where its `G28`
+/// leaves the nozzle.
+fn believed_machine(
+    believed: &MachineConfig,
+) -> Result<(::machine::Machine, PatternOptions), SimulationError> {
+    let machine = ::machine::Machine::from_config(believed.clone(), "believed machine")?;
+    let options = PatternOptions {
+        home: machine.setup.home_position,
+        ..PatternOptions::default()
+    };
+    Ok((machine, options))
+}
+
+fn pattern_error(e: impl std::fmt::Display) -> SimulationError {
+    SimulationError::Calibration(format!("calibration pattern: {e}"))
+}
+
 /// The five-bar's default pattern of the believed machine printed on `actual`, its crosses measured: the pattern
 /// and the measurements.
 pub fn print_and_measure_fivebar(
@@ -82,23 +106,14 @@ pub fn print_and_measure_fivebar(
     measuring: Measuring,
     rng: &mut impl Rng,
 ) -> Result<(calibrate::fivebar::Pattern, Vec<Measurement>), SimulationError> {
-    let machine = ::machine::Machine::from_config(believed.clone(), "believed machine")?;
+    let (machine, options) = believed_machine(believed)?;
     let kin = Fivebar::of(machine.setup.kinematics.as_ref()).ok_or_else(|| {
         SimulationError::Calibration("the believed machine is not a five-bar".into())
     })?;
-    let options = PatternOptions {
-        home: machine.setup.home_position,
-        ..PatternOptions::default()
-    };
     let pattern =
         calibrate::fivebar::machine_pattern(kin, calibrate::fivebar::DEFAULT_POSES, &options)
-            .map_err(|e| SimulationError::Calibration(format!("calibration pattern: {e}")))?;
-    let printed = Printed {
-        gcode: &pattern.gcode,
-        poses: &pattern.poses,
-        centres: &pattern.centres,
-        half: options.cross_size / 2.0,
-    };
+            .map_err(pattern_error)?;
+    let printed = Printed::of(&pattern.gcode, &pattern.poses, &pattern.centres, &options);
     let data = measure_printed(believed, actual, &printed, measuring, rng)?;
     Ok((pattern, data))
 }

@@ -20,7 +20,7 @@ use super::measurements::{CSV_HEADER, measurement_template};
 use super::model::FivebarGeometry;
 use crate::measured::degrees;
 use crate::scara::PatternOptions;
-use crate::scara::pattern::{CrossWriter, num, strokes, written};
+use crate::scara::pattern::{CrossWriter, joint_travel, num, strokes, written};
 
 /// Grid lines each way over the box both arms reach.
 const GRID: usize = 40;
@@ -230,40 +230,19 @@ fn start_of(kin: &Fivebar, home: Option<Vec3>) -> Option<Travelling> {
     Some((p, (motors[0], motors[1])))
 }
 
-/// Via points of the travel to a cross starting at `to` (motor readings `target` at its centre): the motors turned
-/// together from one pose's readings to the next's, each via point rounded as written; the coarsest step at which
-/// the machine accepts every segment, else the straight line if it accepts that.
+/// Via points of the travel to a cross starting at `to` (motor readings `target` at its centre): the joint-space
+/// travel both pattern makers use, else the straight line if the machine accepts that.
 fn travel(
     kin: &Fivebar,
-    (at, motors): Travelling,
+    from: Travelling,
     target: (f64, f64),
     to: Vec3,
 ) -> Result<Vec<[f64; 2]>, FivebarError> {
-    let z = to[2];
-    let (da, db) = (target.0 - motors.0, target.1 - motors.1);
-    for step in TRAVEL_STEPS_DEG {
-        let steps = (da.abs().max(db.abs()) / step.to_radians()).ceil().max(1.0) as usize;
-        let vias: Option<Vec<[f64; 2]>> = (1..steps)
-            .map(|i| {
-                let f = i as f64 / steps as f64;
-                let p = kin
-                    .forward(&[motors.0 + da * f, motors.1 + db * f, z])
-                    .ok()?;
-                Some([written(p[0]), written(p[1])])
-            })
-            .collect();
-        let Some(vias) = vias else { continue };
-        let mut points = vec![[at[0], at[1], z]];
-        points.extend(vias.iter().map(|p| [p[0], p[1], z]));
-        points.push(to);
-        if points
-            .windows(2)
-            .all(|w| kin.check_segment(w[0], w[1]).is_ok())
-        {
-            return Ok(vias);
-        }
+    if let Ok(vias) = joint_travel(kin, from, target, to, &TRAVEL_STEPS_DEG) {
+        return Ok(vias);
     }
-    match kin.check_segment([at[0], at[1], z], to) {
+    let at = from.0;
+    match kin.check_segment([at[0], at[1], to[2]], to) {
         Ok(()) => Ok(Vec::new()),
         Err(e) => Err(FivebarError::Pattern(format!(
             "no travel the machine accepts from X{} Y{} to the cross at X{} Y{}: {}",

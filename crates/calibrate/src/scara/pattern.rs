@@ -475,28 +475,50 @@ fn start_of(kin: &Scara, home: Option<Vec3>) -> Option<Travelling> {
 /// Via points of the travel to a cross starting at `to` (motor angles `target` at its centre): the motors turned
 /// linearly from one pose's angles to the next's, as a joint move would (on a branch the radius depends on the
 /// elbow joint alone, which changes monotonically, so the travel keeps clear of the base and the singular
-/// circles), each point rounded as written; the coarsest step at which the machine accepts every segment.
+/// circles); see [`joint_travel`].
 fn travel(
     kin: &Scara,
     from: Travelling,
     target: (f64, f64),
     to: Vec3,
 ) -> Result<Vec<[f64; 2]>, PatternError> {
+    joint_travel(kin, (from.at, from.motors), target, to, &TRAVEL_STEPS_DEG).map_err(|reason| {
+        PatternError::Travel {
+            from: [from.at[0], from.at[1]],
+            to: [to[0], to[1]],
+            reason,
+        }
+    })
+}
+
+/// Via points of a travel from `at` (motor readings `motors`) to `to` (readings `target` at the next cross, the
+/// layer's height): both motors turned together from one pose's readings to the next's, each via point rounded as
+/// written; the coarsest of `steps_deg` (degrees of the motor that turns most) at which the machine accepts every
+/// segment. Else why the last segment tried was refused (empty when no via point had a pose). Both pattern makers'
+/// travels.
+pub(crate) fn joint_travel(
+    kin: &dyn Kinematics,
+    (at, motors): (Vec3, (f64, f64)),
+    target: (f64, f64),
+    to: Vec3,
+    steps_deg: &[f64],
+) -> Result<Vec<[f64; 2]>, String> {
     let z = to[2];
-    let (da, db) = (target.0 - from.motors.0, target.1 - from.motors.1);
+    let (da, db) = (target.0 - motors.0, target.1 - motors.1);
     let mut refusal = String::new();
-    for step in TRAVEL_STEPS_DEG {
+    for step in steps_deg {
         let steps = (da.abs().max(db.abs()) / step.to_radians()).ceil().max(1.0) as usize;
-        let vias: Vec<[f64; 2]> = (1..steps)
-            .filter_map(|i| {
+        let vias: Option<Vec<[f64; 2]>> = (1..steps)
+            .map(|i| {
                 let f = i as f64 / steps as f64;
-                let (x, y) = kin
-                    .geometry()
-                    .forward(from.motors.0 + da * f, from.motors.1 + db * f);
-                Some([written(x), written(y)]).filter(|p| p.iter().all(|v| v.is_finite()))
+                let p = kin
+                    .forward(&[motors.0 + da * f, motors.1 + db * f, z])
+                    .ok()?;
+                Some([written(p[0]), written(p[1])]).filter(|p| p.iter().all(|v| v.is_finite()))
             })
             .collect();
-        let mut points = vec![[from.at[0], from.at[1], z]];
+        let Some(vias) = vias else { continue };
+        let mut points = vec![[at[0], at[1], z]];
         points.extend(vias.iter().map(|p| [p[0], p[1], z]));
         points.push(to);
         match points
@@ -508,11 +530,7 @@ fn travel(
             Some(e) => refusal = e.reason.to_string(),
         }
     }
-    Err(PatternError::Travel {
-        from: [from.at[0], from.at[1]],
-        to: [to[0], to[1]],
-        reason: refusal,
-    })
+    Err(refusal)
 }
 
 #[cfg(test)]
